@@ -1,0 +1,90 @@
+//! The pinhole camera of the scene format: vertical field of view, image right
+//! = normalize(cross(look_at - position, up)), pixel (0, 0) at the top left.
+
+use glam::Vec3A;
+
+use crate::render::geometry::Ray;
+
+#[derive(Clone, Debug)]
+pub struct Camera {
+    pub position: Vec3A,
+    forward: Vec3A,
+    right: Vec3A,
+    up: Vec3A,
+    tan_half_fov: f32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Camera {
+    /// `forward` and `up` need not be unit or orthogonal, only not parallel (checked by the
+    /// scene loader).
+    pub fn new(
+        position: Vec3A,
+        look_at: Vec3A,
+        up: Vec3A,
+        fov_degrees: f32,
+        width: u32,
+        height: u32,
+    ) -> Camera {
+        let forward = (look_at - position).normalize();
+        let right = forward.cross(up).normalize();
+        let up = right.cross(forward);
+        Camera {
+            position,
+            forward,
+            right,
+            up,
+            tan_half_fov: (fov_degrees.to_radians() * 0.5).tan(),
+            width,
+            height,
+        }
+    }
+
+    /// The same view at another resolution (the vertical field of view is kept).
+    pub fn with_resolution(mut self, width: u32, height: u32) -> Camera {
+        self.width = width;
+        self.height = height;
+        self
+    }
+
+    /// The ray through film position (x, y) in pixels, (0, 0) the top-left corner of the image.
+    #[inline]
+    pub fn ray(&self, x: f32, y: f32) -> Ray {
+        let aspect = self.width as f32 / self.height as f32;
+        let sx = (2.0 * x / self.width as f32 - 1.0) * self.tan_half_fov * aspect;
+        let sy = (1.0 - 2.0 * y / self.height as f32) * self.tan_half_fov;
+        let d = (self.forward + sx * self.right + sy * self.up).normalize();
+        Ray::new(self.position, d)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn image_right_and_top_follow_the_contract() {
+        let cam = Camera::new(
+            Vec3A::new(0.0, 0.0, 5.0),
+            Vec3A::ZERO,
+            Vec3A::Y,
+            40.0,
+            64,
+            48,
+        );
+        let left = cam.ray(0.0, 24.0);
+        let top = cam.ray(32.0, 0.0);
+        let centre = cam.ray(32.0, 24.0);
+        assert!(
+            left.d.x < 0.0,
+            "pixel column 0 looks to -x (image right is +x)"
+        );
+        assert!(top.d.y > 0.0, "pixel row 0 looks up");
+        assert!((centre.d - Vec3A::new(0.0, 0.0, -1.0)).length() < 1e-6);
+        let half = (cam.ray(32.0, 0.0).d.y / -cam.ray(32.0, 0.0).d.z)
+            .atan()
+            .to_degrees();
+        assert!((half - 20.0).abs() < 1e-3, "vertical half-angle {half}");
+    }
+}

@@ -1,0 +1,173 @@
+//! Deciding, before any photon is traced, which light-transport effects a job simulates,
+//! and so which photon maps it needs: no map the integrator does not read, no caustic map
+//! in a scene without specular surfaces, no photons from lights that emit nothing.
+
+use std::collections::BTreeMap;
+
+use crate::render::integrator::{IntegratorKind, Plan, RenderParams};
+use crate::render::material::Material;
+use crate::render::math::max_component;
+use crate::render::photon::{PhotonParams, PhotonStore};
+use crate::render::scene::Scene;
+use crate::render::stats::Effect;
+
+/// What a job will simulate and the photon maps that takes.
+pub struct Analysis {
+    pub plan: Plan,
+    pub photon_params: PhotonParams,
+    pub effects: BTreeMap<String, Effect>,
+}
+
+fn effect(simulated: bool, how: &str, reason: &str) -> Effect {
+    Effect {
+        simulated,
+        how: how.to_string(),
+        reason: reason.to_string(),
+    }
+}
+
+pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
+    let plan = Plan::new(params);
+    let has = |f: fn(&Material) -> bool| scene.materials.iter().any(f);
+    let mirror = has(|m| matches!(m, Material::Mirror { .. }));
+    let glass = has(|m| matches!(m, Material::Dielectric { .. }));
+    let phong = has(|m| matches!(m, Material::Phong { .. }));
+    let diffuse = has(|m| m.diffuse_reflectance() != crate::render::math::Rgb::ZERO);
+    let specular = mirror || glass;
+    let lit = scene.lights.iter().any(|l| max_component(l.power()) > 0.0);
+    let photon = params.integrator == IntegratorKind::Photon;
+    let direct_only = params.photon_store == PhotonStore::DirectOnly;
+
+    let caustic_map = plan.needs_caustic_map() && specular && lit && diffuse;
+    let global_map = !plan.global_classes().is_empty() && lit && diffuse;
+
+    let mut e = BTreeMap::new();
+    let shadow_rays = plan.primary.shadow_rays;
+    e.insert(
+        "direct_light".into(),
+        if !lit {
+            effect(false, "none", "no light emits any power")
+        } else if shadow_rays {
+            effect(
+                true,
+                "shadow rays",
+                "exact for point lights, low noise for area lights",
+            )
+        } else {
+            effect(
+                true,
+                "global photon map",
+                "--photon-store all/direct_only reads direct light from photons",
+            )
+        },
+    );
+    e.insert(
+        "shadows".into(),
+        effect(
+            lit,
+            if shadow_rays {
+                "shadow rays"
+            } else {
+                "photon density"
+            },
+            "follows direct light",
+        ),
+    );
+    e.insert(
+        "specular_reflection".into(),
+        if specular {
+            effect(true, "ray traced", "the scene has mirror or glass surfaces")
+        } else {
+            effect(false, "none", "no mirror or glass in the scene")
+        },
+    );
+    e.insert(
+        "refraction".into(),
+        if glass {
+            effect(true, "ray traced, exact Fresnel", "the scene has glass")
+        } else {
+            effect(false, "none", "no glass in the scene")
+        },
+    );
+    e.insert(
+        "caustics".into(),
+        if caustic_map {
+            effect(
+                true,
+                "caustic photon map",
+                "specular surfaces can focus light onto diffuse ones",
+            )
+        } else if !photon {
+            effect(false, "none", "the raytrace integrator traces no photons")
+        } else if direct_only {
+            effect(
+                false,
+                "none",
+                "--photon-store direct_only shows first-hit photons only",
+            )
+        } else if !specular {
+            effect(
+                false,
+                "none",
+                "no specular surface: no caustic photons traced",
+            )
+        } else {
+            effect(false, "none", "no lit diffuse surface to receive caustics")
+        },
+    );
+    e.insert(
+        "diffuse_interreflection".into(),
+        if global_map && !direct_only {
+            let how = if params.gather_rays > 0 {
+                "final gathering over the global photon map"
+            } else {
+                "global photon map"
+            };
+            effect(
+                true,
+                how,
+                "light bounces between diffuse surfaces (colour bleeding)",
+            )
+        } else if !photon {
+            effect(false, "none", "the raytrace integrator traces no photons")
+        } else if direct_only {
+            effect(
+                false,
+                "none",
+                "--photon-store direct_only shows first-hit photons only",
+            )
+        } else {
+            effect(false, "none", "no lit diffuse surface")
+        },
+    );
+    e.insert(
+        "glossy".into(),
+        if phong {
+            let how = if plan.primary.glossy_rays {
+                "shadow rays and a ray traced Phong lobe"
+            } else {
+                "shadow rays only"
+            };
+            effect(true, how, "the scene has Phong surfaces")
+        } else {
+            effect(false, "none", "no Phong surface in the scene")
+        },
+    );
+
+    let photon_params = PhotonParams {
+        global_photons: if global_map { params.photons } else { 0 },
+        caustic_photons: if caustic_map {
+            params.caustic_photons
+        } else {
+            0
+        },
+        store: params.photon_store,
+        max_depth: params.max_depth,
+        seed: params.seed,
+    };
+    Analysis {
+        plan,
+        photon_params,
+        effects: e,
+    }
+}

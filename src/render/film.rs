@@ -1,0 +1,133 @@
+//! The film: a linear RGB image filled tile by tile in parallel, with the box pixel filter.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use rayon::prelude::*;
+
+use crate::render::camera::Camera;
+use crate::render::control::{Cancelled, Control, Phase};
+use crate::render::integrator::{Scratch, Shader};
+use crate::render::math::Rgb;
+use crate::render::sampling::{Sampler, Stream};
+
+/// A linear-radiance image, row-major from the top-left pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 3]>,
+}
+
+impl Image {
+    pub fn new(width: u32, height: u32) -> Image {
+        Image {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; width as usize * height as usize],
+        }
+    }
+
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
+        self.pixels[(y * self.width + x) as usize]
+    }
+
+    /// Mean of each channel over a rectangle [x0, x1) x [y0, y1), in f64.
+    pub fn mean_rgb(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> [f64; 3] {
+        let mut sum = [0.0f64; 3];
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let p = self.get(x, y);
+                for c in 0..3 {
+                    sum[c] += p[c] as f64;
+                }
+            }
+        }
+        let n = ((x1 - x0) * (y1 - y0)).max(1) as f64;
+        sum.map(|s| s / n)
+    }
+}
+
+const TILE: u32 = 16;
+
+/// The result of the camera pass.
+pub struct FilmOutput {
+    pub image: Image,
+    /// Samples dropped because they were NaN or infinite.
+    pub nonfinite_samples: u64,
+}
+
+/// Render every pixel with `spp` jittered samples. Sample j of pixel i draws its random
+/// numbers from stream (seed, camera, i * spp + j) alone, so the image is bit-identical
+/// whatever the number of threads.
+pub fn render_film(
+    shader: &Shader,
+    camera: &Camera,
+    spp: u32,
+    seed: u64,
+    control: &Control,
+) -> Result<FilmOutput, Cancelled> {
+    let (w, h) = (camera.width, camera.height);
+    let tiles_x = w.div_ceil(TILE);
+    let tiles_y = h.div_ceil(TILE);
+    let n_tiles = tiles_x * tiles_y;
+    let tracker = control.tracker(Phase::Render, n_tiles as u64);
+    let dropped = AtomicU64::new(0);
+    let tiles: Vec<Vec<[f32; 3]>> = (0..n_tiles)
+        .into_par_iter()
+        .map_init(Scratch::default, |scratch, t| {
+            control.check()?;
+            let (tx, ty) = (t % tiles_x, t / tiles_x);
+            let (x0, y0) = (tx * TILE, ty * TILE);
+            let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
+            let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
+            let mut bad = 0;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let pixel = (y as u64) * w as u64 + x as u64;
+                    let mut sum = Rgb::ZERO;
+                    let mut good = 0u32;
+                    for j in 0..spp {
+                        let mut s =
+                            Sampler::new(seed, Stream::Camera, pixel * spp as u64 + j as u64);
+                        let jitter = s.next_2d();
+                        let ray = camera.ray(x as f32 + jitter.x, y as f32 + jitter.y);
+                        let l = shader.camera_ray(&ray, &mut s, scratch);
+                        if l.is_finite() {
+                            sum += l;
+                            good += 1;
+                        } else {
+                            bad += 1;
+                        }
+                    }
+                    let v = if good > 0 {
+                        sum / good as f32
+                    } else {
+                        Rgb::ZERO
+                    };
+                    out.push(v.to_array());
+                }
+            }
+            if bad > 0 {
+                dropped.fetch_add(bad, Ordering::Relaxed);
+            }
+            tracker.advance(1);
+            Ok(out)
+        })
+        .collect::<Result<_, Cancelled>>()?;
+    let mut image = Image::new(w, h);
+    for (t, tile) in tiles.into_iter().enumerate() {
+        let t = t as u32;
+        let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
+        let x1 = (x0 + TILE).min(w);
+        let tw = (x1 - x0) as usize;
+        for (i, px) in tile.into_iter().enumerate() {
+            let (dx, dy) = ((i % tw) as u32, (i / tw) as u32);
+            image.pixels[((y0 + dy) * w + x0 + dx) as usize] = px;
+        }
+    }
+    Ok(FilmOutput {
+        image,
+        nonfinite_samples: dropped.into_inner(),
+    })
+}

@@ -1,0 +1,427 @@
+//! The closed set of shapes: sphere, quad (parallelogram) and triangle, with ray
+//! intersection and a conservative error bound for every hit point.
+
+use glam::Vec3A;
+use obvhs::aabb::Aabb;
+
+use super::{PrimId, Ray, SurfacePoint};
+use crate::render::math::gamma;
+
+#[derive(Clone, Copy, Debug)]
+pub enum Shape {
+    Sphere {
+        center: Vec3A,
+        radius: f32,
+    },
+    /// corner + s * edge_u + t * edge_v for s, t in [0, 1]; normal along cross(edge_u, edge_v).
+    Quad {
+        corner: Vec3A,
+        edge_u: Vec3A,
+        edge_v: Vec3A,
+        /// Unit normal.
+        n: Vec3A,
+        /// cross(edge_u, edge_v) / |cross(edge_u, edge_v)|^2, to solve for (s, t).
+        w: Vec3A,
+    },
+    /// Counter-clockwise seen from the side the normal points to.
+    Triangle {
+        p0: Vec3A,
+        p1: Vec3A,
+        p2: Vec3A,
+    },
+}
+
+/// What a primitive's surface does to light: scatter by a material, or emit (and absorb)
+/// as a light's surface.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Surface {
+    Material(u32),
+    Light(u32),
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Primitive {
+    pub shape: Shape,
+    pub surface: Surface,
+}
+
+/// Where along the ray a shape was hit, plus the shape's own parameters of the hit.
+#[derive(Clone, Copy, Debug)]
+pub struct ShapeHit {
+    pub t: f32,
+    pub uv: [f32; 2],
+}
+
+impl Shape {
+    pub fn quad(corner: Vec3A, edge_u: Vec3A, edge_v: Vec3A) -> Shape {
+        let c = edge_u.cross(edge_v);
+        Shape::Quad {
+            corner,
+            edge_u,
+            edge_v,
+            n: c.normalize(),
+            w: c / c.length_squared(),
+        }
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        match *self {
+            Shape::Sphere { center, radius } => Aabb {
+                min: center - Vec3A::splat(radius),
+                max: center + Vec3A::splat(radius),
+            },
+            Shape::Quad {
+                corner,
+                edge_u,
+                edge_v,
+                ..
+            } => {
+                let pts = [
+                    corner,
+                    corner + edge_u,
+                    corner + edge_v,
+                    corner + edge_u + edge_v,
+                ];
+                points_bounds(&pts)
+            }
+            Shape::Triangle { p0, p1, p2 } => points_bounds(&[p0, p1, p2]),
+        }
+    }
+
+    /// The nearest hit in (0, ray.t_max), if any. `me` is this shape's id, compared against
+    /// the ray's origin primitive to rule out self-intersection exactly (see module docs).
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, me: PrimId) -> Option<ShapeHit> {
+        if ray.target_prim == me {
+            return None;
+        }
+        let from_me = ray.origin_prim == me;
+        match *self {
+            Shape::Sphere { center, radius } => intersect_sphere(center, radius, ray, from_me),
+            Shape::Quad {
+                corner,
+                edge_u,
+                edge_v,
+                n,
+                w,
+            } => {
+                if from_me {
+                    return None;
+                }
+                intersect_quad(corner, edge_u, edge_v, n, w, ray)
+            }
+            Shape::Triangle { p0, p1, p2 } => {
+                if from_me {
+                    return None;
+                }
+                intersect_triangle(p0, p1, p2, ray)
+            }
+        }
+    }
+
+    /// The surface point of a hit found by [`Shape::intersect`], with its error bound.
+    pub fn surface_point(&self, ray: &Ray, hit: &ShapeHit, prim: PrimId) -> SurfacePoint {
+        match *self {
+            Shape::Sphere { center, radius } => {
+                // Re-project onto the sphere (pbrt-v4 6.8.5): the point is then exact to a few
+                // ulps whatever the error of t.
+                let local = ray.at(hit.t) - center;
+                let local = local * (radius / local.length());
+                let p = center + local;
+                let p_error = gamma(5) * local.abs() + gamma(1) * p.abs();
+                SurfacePoint {
+                    p,
+                    p_error,
+                    n: local / radius,
+                    prim,
+                }
+            }
+            Shape::Quad {
+                corner,
+                edge_u,
+                edge_v,
+                n,
+                ..
+            } => {
+                let [s, t] = hit.uv;
+                let (a, b) = (s * edge_u, t * edge_v);
+                SurfacePoint {
+                    p: corner + a + b,
+                    p_error: gamma(4) * (corner.abs() + a.abs() + b.abs()),
+                    n,
+                    prim,
+                }
+            }
+            Shape::Triangle { p0, p1, p2 } => {
+                let [b1, b2] = hit.uv;
+                let b0 = 1.0 - b1 - b2;
+                let (a, b, c) = (b0 * p0, b1 * p1, b2 * p2);
+                SurfacePoint {
+                    p: a + b + c,
+                    p_error: gamma(7) * (a.abs() + b.abs() + c.abs()),
+                    n: (p1 - p0).cross(p2 - p0).normalize(),
+                    prim,
+                }
+            }
+        }
+    }
+}
+
+fn points_bounds(pts: &[Vec3A]) -> Aabb {
+    let mut min = Vec3A::splat(f32::INFINITY);
+    let mut max = Vec3A::splat(f32::NEG_INFINITY);
+    for p in pts {
+        min = min.min(*p);
+        max = max.max(*p);
+    }
+    Aabb { min, max }
+}
+
+/// Ray-sphere with the numerically careful discriminant of Haines et al., "Precision
+/// Improvements for Ray/Sphere Intersection" (Ray Tracing Gems, ch. 7): b^2 - c is computed
+/// as r^2 - |f - b d|^2, which stays accurate for spheres tiny or huge relative to their
+/// distance. A ray leaving this sphere's own surface either goes outward (no hit possible:
+/// the sphere is convex) or inward (only the far root is real).
+#[inline]
+fn intersect_sphere(center: Vec3A, radius: f32, ray: &Ray, from_me: bool) -> Option<ShapeHit> {
+    let f = ray.o - center;
+    if from_me && ray.d.dot(f) >= 0.0 {
+        return None;
+    }
+    let b = f.dot(ray.d);
+    let l = f - b * ray.d;
+    let disc = (radius - l.length()) * (radius + l.length());
+    if disc < 0.0 {
+        return None;
+    }
+    let c = f.length_squared() - radius * radius;
+    let q = -b - disc.sqrt().copysign(b);
+    let (t0, t1) = if q == 0.0 {
+        (0.0, 0.0)
+    } else {
+        let (a, bb) = (c / q, q);
+        if a < bb { (a, bb) } else { (bb, a) }
+    };
+    let t = if from_me {
+        t1
+    } else if t0 > 0.0 {
+        t0
+    } else {
+        t1
+    };
+    (t > 0.0 && t < ray.t_max).then_some(ShapeHit { t, uv: [0.0, 0.0] })
+}
+
+#[inline]
+fn intersect_quad(
+    corner: Vec3A,
+    edge_u: Vec3A,
+    edge_v: Vec3A,
+    n: Vec3A,
+    w: Vec3A,
+    ray: &Ray,
+) -> Option<ShapeHit> {
+    let denom = n.dot(ray.d);
+    if denom == 0.0 {
+        return None;
+    }
+    let t = n.dot(corner - ray.o) / denom;
+    if !(t > 0.0 && t < ray.t_max) {
+        return None;
+    }
+    let rel = ray.at(t) - corner;
+    let s = w.dot(rel.cross(edge_v));
+    let v = w.dot(edge_u.cross(rel));
+    ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&v)).then_some(ShapeHit { t, uv: [s, v] })
+}
+
+/// a*b - c*d with the rounding error of c*d compensated by an FMA (Kahan; pbrt-v4 B.2.9).
+#[inline]
+fn difference_of_products(a: f32, b: f32, c: f32, d: f32) -> f32 {
+    let cd = c * d;
+    let dop = a.mul_add(b, -cd);
+    let err = (-c).mul_add(d, cd);
+    dop + err
+}
+
+#[inline]
+fn permute(v: Vec3A, x: usize, y: usize, z: usize) -> Vec3A {
+    Vec3A::new(v[x], v[y], v[z])
+}
+
+/// Watertight ray-triangle intersection (Woop, Benthin and Wald, "Watertight Ray/Triangle
+/// Intersection", JCGT 2(1), 2013, as in pbrt-v4 6.5.3): no ray slips between two triangles
+/// sharing an edge, so closed meshes never leak. The conservative test on t at the end
+/// (pbrt-v4's deltaT) rejects hits not provably in front of the origin.
+#[inline]
+fn intersect_triangle(p0: Vec3A, p1: Vec3A, p2: Vec3A, ray: &Ray) -> Option<ShapeHit> {
+    let ad = ray.d.abs();
+    let kz = if ad.x > ad.y {
+        if ad.x > ad.z { 0 } else { 2 }
+    } else if ad.y > ad.z {
+        1
+    } else {
+        2
+    };
+    let kx = (kz + 1) % 3;
+    let ky = (kx + 1) % 3;
+    let d = permute(ray.d, kx, ky, kz);
+    let mut a = permute(p0 - ray.o, kx, ky, kz);
+    let mut b = permute(p1 - ray.o, kx, ky, kz);
+    let mut c = permute(p2 - ray.o, kx, ky, kz);
+    let sx = -d.x / d.z;
+    let sy = -d.y / d.z;
+    let sz = 1.0 / d.z;
+    for p in [&mut a, &mut b, &mut c] {
+        p.x += sx * p.z;
+        p.y += sy * p.z;
+    }
+    let mut e0 = difference_of_products(b.x, c.y, b.y, c.x);
+    let mut e1 = difference_of_products(c.x, a.y, c.y, a.x);
+    let mut e2 = difference_of_products(a.x, b.y, a.y, b.x);
+    if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+        let f = |p: f32, q: f32, r: f32, s: f32| (p as f64 * q as f64 - r as f64 * s as f64) as f32;
+        e0 = f(b.x, c.y, b.y, c.x);
+        e1 = f(c.x, a.y, c.y, a.x);
+        e2 = f(a.x, b.y, a.y, b.x);
+    }
+    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+        return None;
+    }
+    let det = e0 + e1 + e2;
+    if det == 0.0 {
+        return None;
+    }
+    a.z *= sz;
+    b.z *= sz;
+    c.z *= sz;
+    let t_scaled = e0 * a.z + e1 * b.z + e2 * c.z;
+    if det < 0.0 && (t_scaled >= 0.0 || t_scaled < ray.t_max * det) {
+        return None;
+    }
+    if det > 0.0 && (t_scaled <= 0.0 || t_scaled > ray.t_max * det) {
+        return None;
+    }
+    let inv_det = 1.0 / det;
+    let t = t_scaled * inv_det;
+    // Conservative bound on the error of t (pbrt-v4, "Ensure that computed triangle t is
+    // conservatively greater than zero").
+    let max_zt = a.z.abs().max(b.z.abs()).max(c.z.abs());
+    let delta_z = gamma(3) * max_zt;
+    let max_xt = a.x.abs().max(b.x.abs()).max(c.x.abs());
+    let max_yt = a.y.abs().max(b.y.abs()).max(c.y.abs());
+    let delta_x = gamma(5) * (max_xt + max_zt);
+    let delta_y = gamma(5) * (max_yt + max_zt);
+    let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+    let delta_t =
+        3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+    if t <= delta_t {
+        return None;
+    }
+    Some(ShapeHit {
+        t,
+        uv: [e1 * inv_det, e2 * inv_det],
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::geometry::NO_PRIM;
+
+    fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
+        Ray::new(Vec3A::from(o), Vec3A::from(d).normalize())
+    }
+
+    #[test]
+    fn sphere_hits_near_side_from_outside_and_far_side_from_inside() {
+        let s = Shape::Sphere {
+            center: Vec3A::ZERO,
+            radius: 1.0,
+        };
+        let h = s
+            .intersect(&ray([0.0, 0.0, 5.0], [0.0, 0.0, -1.0]), 0)
+            .unwrap();
+        assert!((h.t - 4.0).abs() < 1e-6);
+        let h = s
+            .intersect(&ray([0.0, 0.0, 0.5], [0.0, 0.0, -1.0]), 0)
+            .unwrap();
+        assert!((h.t - 1.5).abs() < 1e-6);
+        assert!(
+            s.intersect(&ray([0.0, 2.0, 5.0], [0.0, 0.0, -1.0]), 0)
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn sphere_tiny_and_huge_hit_points_lie_on_the_surface() {
+        for &(r, dist) in &[(1e-3f32, 10.0f32), (1e4, 3e4)] {
+            let s = Shape::Sphere {
+                center: Vec3A::new(0.3 * r, 0.0, 0.0),
+                radius: r,
+            };
+            let rr = ray([0.0, 0.1 * r, dist], [0.0, 0.0, -1.0]);
+            let h = s.intersect(&rr, 0).unwrap();
+            let sp = s.surface_point(&rr, &h, 0);
+            let err = ((sp.p - Vec3A::new(0.3 * r, 0.0, 0.0)).length() - r).abs();
+            assert!(
+                err <= 4.0 * sp.p_error.max_element(),
+                "radius {r}: off by {err}"
+            );
+        }
+    }
+
+    #[test]
+    fn quad_bounds_and_parameters() {
+        let q = Shape::quad(
+            Vec3A::new(-1.0, 0.0, -1.0),
+            Vec3A::new(2.0, 0.0, 0.0),
+            Vec3A::new(0.0, 0.0, 2.0),
+        );
+        let r = ray([0.5, 3.0, 0.5], [0.0, -1.0, 0.0]);
+        let h = q.intersect(&r, 0).unwrap();
+        assert!((h.t - 3.0).abs() < 1e-6);
+        assert!((h.uv[0] - 0.75).abs() < 1e-6 && (h.uv[1] - 0.75).abs() < 1e-6);
+        let sp = q.surface_point(&r, &h, 0);
+        assert!((sp.n - Vec3A::new(0.0, -1.0, 0.0)).length() < 1e-6);
+        assert!(
+            q.intersect(&ray([1.5, 3.0, 0.5], [0.0, -1.0, 0.0]), 0)
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn triangles_sharing_an_edge_are_watertight() {
+        // Two triangles forming the unit square in z = 0; shoot rays exactly at the diagonal.
+        let t1 = Shape::Triangle {
+            p0: Vec3A::new(0.0, 0.0, 0.0),
+            p1: Vec3A::new(1.0, 0.0, 0.0),
+            p2: Vec3A::new(1.0, 1.0, 0.0),
+        };
+        let t2 = Shape::Triangle {
+            p0: Vec3A::new(0.0, 0.0, 0.0),
+            p1: Vec3A::new(1.0, 1.0, 0.0),
+            p2: Vec3A::new(0.0, 1.0, 0.0),
+        };
+        for i in 0..=1000 {
+            let x = i as f32 / 1000.0;
+            let r = ray([x, x, 1.0], [0.0, 0.0, -1.0]);
+            assert!(
+                t1.intersect(&r, 0).is_some() || t2.intersect(&r, 1).is_some(),
+                "leak at {x}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_ray_never_hits_the_planar_primitive_it_leaves() {
+        let q = Shape::quad(Vec3A::ZERO, Vec3A::X, Vec3A::Z);
+        let mut r = ray([0.5, 0.0, 0.5], [0.0, 1.0, 0.0]);
+        r.origin_prim = 3;
+        assert!(q.intersect(&r, 3).is_none());
+        r.origin_prim = NO_PRIM;
+        r.o.y = -1.0;
+        assert!(q.intersect(&r, 3).is_some());
+    }
+}

@@ -1,0 +1,202 @@
+//! Integrators: which light paths each one estimates, and how.
+//!
+//! Jensen's split of the rendering equation at the first non-specular point x a camera path
+//! reaches (Jensen 2001, section 9.1) is L(x) = direct + caustics + indirect diffuse (+ glossy
+//! and specular reflection, ray traced). Every light path L (S|D)* D(x) falls in exactly one
+//! term, by the path class of the photons that carry it:
+//!
+//! | mode (`--photon-store`, gather G) | direct at x     | caustics at x | indirect at x                                   |
+//! |-----------------------------------|-----------------|---------------|-------------------------------------------------|
+//! | raytrace                          | shadow rays     | -             | -                                               |
+//! | photon indirect, G = 0            | shadow rays     | caustic map   | global map, class Indirect                      |
+//! | photon indirect, G > 0            | shadow rays     | caustic map   | gather; at y: shadow rays + global Caustic, Indirect |
+//! | photon all, G = 0                 | global Direct   | caustic map   | global map, class Indirect                      |
+//! | photon all, G > 0                 | global Direct   | caustic map   | gather; at y: global map, all classes           |
+//!
+//! (In `all` mode the global map holds every class; a gather hit y reads Direct, Caustic
+//! and Indirect from it.) Secondary vertices, reached from x along a Phong glossy lobe, are
+//! shaded like the G = 0 row: final gathering happens once per camera path.
+//! | photon direct_only                | global Direct   | -             | -                                               |
+//!
+//! Gather rays and glossy rays never count emission they hit when shadow rays already
+//! account for it, and gather rays never count it at all (a light seen through a specular
+//! chain from x is a caustic, in the caustic map).
+
+mod shade;
+
+pub use shade::{Scratch, Shader};
+
+use crate::render::photon::{ClassMask, PathClass, PhotonStore};
+
+/// The closed set of integrators.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum IntegratorKind {
+    /// Direct light by shadow rays and perfect specular chains; no photon maps.
+    Raytrace,
+    /// Jensen-style photon mapping with global and caustic maps.
+    Photon,
+}
+
+impl IntegratorKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorKind::Raytrace => "raytrace",
+            IntegratorKind::Photon => "photon",
+        }
+    }
+}
+
+/// Everything a render job can set besides the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderParams {
+    pub integrator: IntegratorKind,
+    /// Photons emitted for the global map.
+    pub photons: u64,
+    /// Photons emitted for the caustic map.
+    pub caustic_photons: u64,
+    /// Photons per radiance estimate.
+    pub k: usize,
+    pub photon_store: PhotonStore,
+    /// Final-gather rays per camera sample at the first diffuse point; 0 reads the global map.
+    pub gather_rays: u32,
+    /// Jittered samples per pixel (box filter).
+    pub spp: u32,
+    /// Longest path (surface interactions) for photons and camera rays.
+    pub max_depth: u32,
+    pub seed: u64,
+    /// Resolution override (else the scene's camera).
+    pub width: Option<u32>,
+    pub height: Option<u32>,
+}
+
+impl Default for RenderParams {
+    fn default() -> Self {
+        RenderParams {
+            integrator: IntegratorKind::Photon,
+            photons: 200_000,
+            caustic_photons: 200_000,
+            k: 50,
+            photon_store: PhotonStore::Indirect,
+            gather_rays: 0,
+            spp: 4,
+            max_depth: 32,
+            seed: 1,
+            width: None,
+            height: None,
+        }
+    }
+}
+
+/// What is estimated at one kind of non-specular path vertex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct VertexPlan {
+    /// Direct light by shadow rays (full BSDF).
+    pub shadow_rays: bool,
+    /// Caustics from the caustic map.
+    pub caustic_map: bool,
+    /// Global-map classes read here (through the irradiance cache).
+    pub global: ClassMask,
+    /// Final gathering over the hemisphere.
+    pub gather: bool,
+    /// Trace the glossy lobe of Phong materials.
+    pub glossy_rays: bool,
+}
+
+/// What one render reads at the first non-specular vertex of a camera path (`primary`), at a
+/// vertex reached by a glossy ray from another (`secondary`), and at final-gather hits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Plan {
+    pub primary: VertexPlan,
+    pub secondary: VertexPlan,
+    pub gather_hit: VertexPlan,
+}
+
+impl Plan {
+    pub fn new(p: &RenderParams) -> Plan {
+        use PathClass::*;
+        let nothing = VertexPlan {
+            shadow_rays: false,
+            caustic_map: false,
+            global: ClassMask::NONE,
+            gather: false,
+            glossy_rays: false,
+        };
+        match (p.integrator, p.photon_store) {
+            (IntegratorKind::Raytrace, _) => {
+                let v = VertexPlan {
+                    shadow_rays: true,
+                    ..nothing
+                };
+                Plan {
+                    primary: v,
+                    secondary: v,
+                    gather_hit: nothing,
+                }
+            }
+            (IntegratorKind::Photon, PhotonStore::DirectOnly) => {
+                let v = VertexPlan {
+                    global: ClassMask::of(&[Direct]),
+                    ..nothing
+                };
+                Plan {
+                    primary: v,
+                    secondary: v,
+                    gather_hit: nothing,
+                }
+            }
+            (IntegratorKind::Photon, store) => {
+                let indirect = store == PhotonStore::Indirect;
+                let direct_from_map = if indirect { vec![] } else { vec![Direct] };
+                let read = |extra: &[PathClass]| {
+                    let mut c = direct_from_map.clone();
+                    c.extend_from_slice(extra);
+                    ClassMask::of(&c)
+                };
+                let secondary = VertexPlan {
+                    shadow_rays: indirect,
+                    caustic_map: true,
+                    global: read(&[Indirect]),
+                    gather: false,
+                    glossy_rays: true,
+                };
+                let gather = p.gather_rays > 0;
+                let primary = if gather {
+                    VertexPlan {
+                        global: read(&[]),
+                        gather: true,
+                        ..secondary
+                    }
+                } else {
+                    secondary
+                };
+                let gather_hit = if gather {
+                    VertexPlan {
+                        shadow_rays: indirect,
+                        global: read(&[Caustic, Indirect]),
+                        ..nothing
+                    }
+                } else {
+                    nothing
+                };
+                Plan {
+                    primary,
+                    secondary,
+                    gather_hit,
+                }
+            }
+        }
+    }
+
+    fn vertices(&self) -> [VertexPlan; 3] {
+        [self.primary, self.secondary, self.gather_hit]
+    }
+
+    /// The global-map classes any vertex reads: what the irradiance cache must hold.
+    pub fn global_classes(&self) -> ClassMask {
+        ClassMask(self.vertices().iter().fold(0, |acc, v| acc | v.global.0))
+    }
+
+    pub fn needs_caustic_map(&self) -> bool {
+        self.vertices().iter().any(|v| v.caustic_map)
+    }
+}

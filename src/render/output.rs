@@ -1,0 +1,79 @@
+//! Writing images: 8-bit sRGB PNG for eyes, 32-bit float linear OpenEXR for measurements.
+
+use std::path::Path;
+
+use image::{DynamicImage, ImageFormat, Rgb32FImage, RgbImage};
+
+use crate::render::film::Image;
+
+/// sRGB opto-electronic transfer function (IEC 61966-2-1).
+fn srgb_encode(linear: f32) -> u8 {
+    let c = linear.clamp(0.0, 1.0);
+    let v = if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    (v * 255.0 + 0.5) as u8
+}
+
+/// The 8-bit sRGB image of clamp(linear * 2^exposure).
+pub fn to_srgb8(image: &Image, exposure: f32) -> RgbImage {
+    let scale = exposure.exp2();
+    let bytes = image
+        .pixels
+        .iter()
+        .flat_map(|p| p.map(|c| srgb_encode(if c.is_finite() { c * scale } else { 0.0 })))
+        .collect();
+    RgbImage::from_raw(image.width, image.height, bytes).expect("buffer matches dimensions")
+}
+
+pub fn write_png(image: &Image, exposure: f32, path: &Path) -> image::ImageResult<()> {
+    to_srgb8(image, exposure).save_with_format(path, ImageFormat::Png)
+}
+
+/// Linear radiance as 32-bit float RGB OpenEXR.
+pub fn write_exr(image: &Image, path: &Path) -> image::ImageResult<()> {
+    let data: Vec<f32> = image.pixels.iter().flatten().copied().collect();
+    let buf =
+        Rgb32FImage::from_raw(image.width, image.height, data).expect("buffer matches dimensions");
+    DynamicImage::ImageRgb32F(buf).save_with_format(path, ImageFormat::OpenExr)
+}
+
+/// Read a linear RGB image (OpenEXR or anything the image crate reads) as f32.
+pub fn read_image(path: &Path) -> image::ImageResult<Image> {
+    let img = image::open(path)?.into_rgb32f();
+    let (width, height) = img.dimensions();
+    let pixels = img.pixels().map(|p| p.0).collect();
+    Ok(Image {
+        width,
+        height,
+        pixels,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_curve_endpoints_and_midpoint() {
+        assert_eq!(srgb_encode(0.0), 0);
+        assert_eq!(srgb_encode(1.0), 255);
+        assert_eq!(srgb_encode(2.0), 255);
+        // Middle grey: 0.18 linear is 0.4613 in sRGB, 117.6 of 255.
+        assert_eq!(srgb_encode(0.18), 118);
+        // The linear toe below 0.0031308.
+        assert_eq!(srgb_encode(0.001), 3);
+    }
+
+    #[test]
+    fn exr_roundtrip_is_lossless() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.exr");
+        let mut img = Image::new(3, 2);
+        img.pixels[4] = [1.5, 0.001_234_5, 1e6];
+        write_exr(&img, &path).unwrap();
+        assert_eq!(read_image(&path).unwrap(), img);
+    }
+}

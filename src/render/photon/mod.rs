@@ -1,0 +1,208 @@
+//! Photon maps (Jensen 1996, "Global Illumination using Photon Maps"): photons traced from
+//! the lights are stored where they land on non-specular surfaces, in a global map and a
+//! caustic map (paths light -> specular+ -> diffuse), and read back by density estimation.
+//!
+//! [`PhotonMaps`] is an immutable value that does not depend on the camera: the server
+//! caches it and renders many views from one.
+
+mod estimate;
+mod kdtree;
+mod trace;
+
+pub use estimate::{IrradianceCache, RadianceEstimate, caustic_irradiance, irradiance_knn};
+pub use kdtree::{KdItem, KdTree, KnnHeap};
+pub use trace::{PhotonParams, PhotonStore, TraceOutput, build_photon_maps, trace_photons};
+
+use glam::Vec3A;
+
+use crate::render::math::{Rgb, decode_oct16, encode_oct16};
+
+/// How a photon reached the surface it is stored on; estimates pick classes so that no
+/// light path is counted twice (see `integrator`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum PathClass {
+    /// First hit after leaving the light: direct illumination (L D).
+    Direct = 0,
+    /// Only specular bounces before: a caustic (L S+ D).
+    Caustic = 1,
+    /// At least one non-specular bounce before (L .* D .* D).
+    Indirect = 2,
+}
+
+/// A set of path classes, as bits (1 << class).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ClassMask(pub u8);
+
+impl ClassMask {
+    pub const NONE: ClassMask = ClassMask(0);
+    pub const ALL: ClassMask = ClassMask(0b111);
+
+    pub const fn of(classes: &[PathClass]) -> ClassMask {
+        let mut bits = 0;
+        let mut i = 0;
+        while i < classes.len() {
+            bits |= 1 << classes[i] as u8;
+            i += 1;
+        }
+        ClassMask(bits)
+    }
+
+    #[inline]
+    pub fn contains(self, class: PathClass) -> bool {
+        self.0 & (1 << class as u8) != 0
+    }
+
+    pub fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+}
+
+/// A stored photon: 32 bytes (position 12, flux 12, two 16-bit octahedral directions, flags).
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+pub struct Photon {
+    pub pos: [f32; 3],
+    pub power: [f32; 3],
+    /// Unit direction toward where the photon came from.
+    wi: u16,
+    /// Surface normal on the side the photon arrived from.
+    n: u16,
+    /// Bits 0-1: PathClass; bits 2-3: kd-tree split axis; bit 4: irradiance point.
+    flags: u8,
+    _pad: [u8; 3],
+}
+
+const _: () = assert!(std::mem::size_of::<Photon>() == 32);
+
+/// One photon path in IRRADIANCE_STRIDE is marked to carry precomputed irradiance (see
+/// [`IrradianceCache`]).
+pub const IRRADIANCE_STRIDE: u64 = 4;
+
+const IRRADIANCE_POINT: u8 = 1 << 4;
+
+impl Photon {
+    pub fn new(
+        pos: Vec3A,
+        power: Rgb,
+        wi: Vec3A,
+        n_side: Vec3A,
+        class: PathClass,
+        irradiance_point: bool,
+    ) -> Photon {
+        Photon {
+            pos: pos.to_array(),
+            power: power.to_array(),
+            wi: encode_oct16(wi),
+            n: encode_oct16(n_side),
+            flags: class as u8
+                | if irradiance_point {
+                    IRRADIANCE_POINT
+                } else {
+                    0
+                },
+            _pad: [0; 3],
+        }
+    }
+
+    /// Whether this photon's path was picked to carry precomputed irradiance.
+    #[inline]
+    pub fn is_irradiance_point(&self) -> bool {
+        self.flags & IRRADIANCE_POINT != 0
+    }
+
+    #[inline]
+    pub fn power(&self) -> Rgb {
+        Rgb::from_array(self.power)
+    }
+
+    #[inline]
+    pub fn wi(&self) -> Vec3A {
+        decode_oct16(self.wi)
+    }
+
+    #[inline]
+    pub fn normal(&self) -> Vec3A {
+        decode_oct16(self.n)
+    }
+
+    #[inline]
+    pub fn class(&self) -> PathClass {
+        match self.flags & 3 {
+            0 => PathClass::Direct,
+            1 => PathClass::Caustic,
+            _ => PathClass::Indirect,
+        }
+    }
+}
+
+impl KdItem for Photon {
+    #[inline]
+    fn position(&self) -> Vec3A {
+        Vec3A::from_array(self.pos)
+    }
+    #[inline]
+    fn axis(&self) -> usize {
+        ((self.flags >> 2) & 3) as usize
+    }
+    fn set_axis(&mut self, axis: usize) {
+        self.flags = (self.flags & !0b1100) | ((axis as u8) << 2);
+    }
+}
+
+/// One photon map: photons in a balanced kd-tree and the number emitted to make them
+/// (each photon already carries flux / emitted).
+pub struct PhotonMap {
+    pub tree: KdTree<Photon>,
+    pub emitted: u64,
+}
+
+impl PhotonMap {
+    pub fn new(photons: Vec<Photon>, emitted: u64) -> PhotonMap {
+        PhotonMap {
+            tree: KdTree::build(photons),
+            emitted,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.tree.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.tree.is_empty()
+    }
+
+    /// Memory held by the photons (the tree adds nothing).
+    pub fn bytes(&self) -> usize {
+        self.tree.len() * std::mem::size_of::<Photon>()
+    }
+
+    /// Total stored flux, summed in f64 so that millions of photons lose no precision.
+    pub fn total_power(&self) -> [f64; 3] {
+        let mut sum = [0.0f64; 3];
+        for p in self.tree.items() {
+            for (s, c) in sum.iter_mut().zip(p.power) {
+                *s += c as f64;
+            }
+        }
+        sum
+    }
+}
+
+/// The photon maps of one (scene, photon parameters) pair, and how they were made.
+pub struct PhotonMaps {
+    pub global: Option<PhotonMap>,
+    pub caustic: Option<PhotonMap>,
+    pub params: PhotonParams,
+    /// Seconds spent tracing photons and building the trees.
+    pub trace_seconds: f64,
+    pub build_seconds: f64,
+}
+
+impl PhotonMaps {
+    pub fn bytes(&self) -> usize {
+        self.global.as_ref().map_or(0, |m| m.bytes())
+            + self.caustic.as_ref().map_or(0, |m| m.bytes())
+    }
+}

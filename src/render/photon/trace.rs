@@ -1,0 +1,297 @@
+//! Photon tracing (Jensen 2001, chapter 5): emission from the lights in proportion to their
+//! power, scattering by the BSDFs with Russian roulette, storage at non-specular surfaces.
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use super::{IRRADIANCE_STRIDE, PathClass, Photon, PhotonMap, PhotonMaps};
+use crate::render::control::{Cancelled, Control, Phase};
+use crate::render::geometry::{Surface, spawn_ray};
+use crate::render::light::Light;
+use crate::render::material::Transport;
+use crate::render::math::{luminance, max_component};
+use crate::render::sampling::{Sampler, Stream, splitmix64};
+use crate::render::scene::Scene;
+
+/// Which first-hit photons the global map keeps (the seed's tri-state).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PhotonStore {
+    /// No first-hit photons: direct light comes from shadow rays.
+    Indirect,
+    /// Every non-specular hit: direct light from the maps too.
+    All,
+    /// Only first-hit photons: the photon-map view of direct light.
+    DirectOnly,
+}
+
+impl PhotonStore {
+    pub fn name(self) -> &'static str {
+        match self {
+            PhotonStore::Indirect => "indirect",
+            PhotonStore::All => "all",
+            PhotonStore::DirectOnly => "direct_only",
+        }
+    }
+
+    fn keeps(self, class: PathClass) -> bool {
+        match self {
+            PhotonStore::Indirect => class != PathClass::Direct,
+            PhotonStore::All => true,
+            PhotonStore::DirectOnly => class == PathClass::Direct,
+        }
+    }
+}
+
+/// Everything that shapes the photon maps (and so keys a cache of them).
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct PhotonParams {
+    /// Photons emitted for the global map; 0 builds none.
+    pub global_photons: u64,
+    /// Photons emitted for the caustic map; 0 builds none.
+    pub caustic_photons: u64,
+    pub store: PhotonStore,
+    /// Surface interactions followed per photon path.
+    pub max_depth: u32,
+    pub seed: u64,
+}
+
+/// Which map a tracing run fills.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Target {
+    Global(PhotonStore),
+    /// Only light -> specular+ -> non-specular paths; tracing stops at the first
+    /// non-specular hit.
+    Caustic,
+}
+
+/// Photons of one tracing run, in photon-index order.
+pub struct TraceOutput {
+    pub photons: Vec<Photon>,
+    pub emitted: u64,
+}
+
+/// Photons per parallel work item: large enough to amortise scheduling, small enough for
+/// prompt cancellation and smooth progress.
+const CHUNK: u64 = 4096;
+
+/// Light-selection table: cumulative luminance of the lights' power.
+struct LightPicker {
+    cdf: Vec<f32>,
+    total: f32,
+}
+
+impl LightPicker {
+    fn new(lights: &[Light]) -> LightPicker {
+        let mut cdf = Vec::with_capacity(lights.len());
+        let mut acc = 0.0;
+        for l in lights {
+            acc += luminance(l.power()).max(0.0);
+            cdf.push(acc);
+        }
+        LightPicker { cdf, total: acc }
+    }
+
+    /// The light for `u` in [0, 1) and its selection probability.
+    fn pick(&self, u: f32) -> (usize, f32) {
+        let x = u * self.total;
+        let i = self
+            .cdf
+            .partition_point(|&c| c <= x)
+            .min(self.cdf.len() - 1);
+        let prev = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        (i, (self.cdf[i] - prev) / self.total)
+    }
+}
+
+/// Trace `emitted` photons for one map. Photon i uses random stream (seed, map, i) only, so
+/// the result is the same whatever the thread count.
+fn trace(
+    scene: &Scene,
+    emitted: u64,
+    target: Target,
+    max_depth: u32,
+    seed: u64,
+    control: &Control,
+    tracker: &crate::render::control::Tracker,
+) -> Result<TraceOutput, Cancelled> {
+    let picker = LightPicker::new(&scene.lights);
+    if emitted == 0 || !(picker.total > 0.0) {
+        tracker.advance(emitted);
+        return Ok(TraceOutput {
+            photons: Vec::new(),
+            emitted,
+        });
+    }
+    let stream = match target {
+        Target::Global(_) => Stream::GlobalPhotons,
+        Target::Caustic => Stream::CausticPhotons,
+    };
+    let chunks = emitted.div_ceil(CHUNK);
+    let parts: Vec<Vec<Photon>> = (0..chunks)
+        .into_par_iter()
+        .map(|c| {
+            control.check()?;
+            let mut out = Vec::new();
+            let end = ((c + 1) * CHUNK).min(emitted);
+            for i in c * CHUNK..end {
+                let mut s = Sampler::new(seed, stream, i);
+                // Paths are picked to carry irradiance points by a hash of their index: a
+                // thinning independent of where their photons land.
+                let irradiance_point = splitmix64(i ^ splitmix64(seed)).is_multiple_of(IRRADIANCE_STRIDE);
+                let path = PathSetup {
+                    picker: &picker,
+                    emitted,
+                    target,
+                    max_depth,
+                    irradiance_point,
+                };
+                trace_one(scene, &path, &mut s, &mut out);
+            }
+            tracker.advance(end - c * CHUNK);
+            Ok(out)
+        })
+        .collect::<Result<_, Cancelled>>()?;
+    let mut photons = Vec::with_capacity(parts.iter().map(Vec::len).sum());
+    for p in parts {
+        photons.extend(p);
+    }
+    Ok(TraceOutput { photons, emitted })
+}
+
+/// What every photon path of one tracing run shares, and this path's irradiance-point mark.
+struct PathSetup<'a> {
+    picker: &'a LightPicker,
+    emitted: u64,
+    target: Target,
+    max_depth: u32,
+    irradiance_point: bool,
+}
+
+fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Photon>) {
+    let PathSetup {
+        picker,
+        emitted,
+        target,
+        max_depth,
+        irradiance_point,
+    } = *path;
+    let (li, p_light) = picker.pick(s.next_f32());
+    let (u_pos, u_dir) = (s.next_2d(), s.next_2d());
+    let em = scene.lights[li].sample_emission(u_pos, u_dir);
+    let mut power = em.flux / (p_light * emitted as f32);
+    let mut ray = em.ray;
+    let mut non_specular_before = false;
+    for depth in 0..max_depth {
+        let Some(hit) = scene.intersect(&ray) else {
+            return;
+        };
+        let Surface::Material(mi) = scene.surface(hit.point.prim) else {
+            return; // lights absorb
+        };
+        let m = &scene.materials[mi as usize];
+        let wo = -ray.d;
+        if !m.is_specular() {
+            let class = if depth == 0 {
+                PathClass::Direct
+            } else if non_specular_before {
+                PathClass::Indirect
+            } else {
+                PathClass::Caustic
+            };
+            let n = hit.point.n;
+            let n_side = if n.dot(wo) < 0.0 { -n } else { n };
+            let keep = match target {
+                Target::Global(store) => store.keeps(class),
+                Target::Caustic => class == PathClass::Caustic,
+            };
+            if keep {
+                out.push(Photon::new(
+                    hit.point.p,
+                    power,
+                    wo,
+                    n_side,
+                    class,
+                    irradiance_point,
+                ));
+            }
+            // Nothing later on this path can be stored in these maps.
+            if target == Target::Caustic || target == Target::Global(PhotonStore::DirectOnly) {
+                return;
+            }
+        }
+        let Some(bs) = m.sample(
+            wo,
+            hit.point.n,
+            s.next_f32(),
+            s.next_2d(),
+            Transport::Importance,
+        ) else {
+            return;
+        };
+        // Russian roulette by the sampled albedo keeps photon power about constant.
+        let survive = max_component(bs.weight).min(1.0);
+        if !(survive > 0.0) || s.next_f32() >= survive {
+            return;
+        }
+        power *= bs.weight / survive;
+        non_specular_before |= !bs.specular;
+        ray = spawn_ray(&hit.point, bs.wi);
+    }
+}
+
+/// Trace the photons of both maps, then balance their kd-trees.
+pub fn trace_photons(
+    scene: &Scene,
+    params: &PhotonParams,
+    control: &Control,
+) -> Result<(TraceOutput, TraceOutput), Cancelled> {
+    let tracker = control.tracker(
+        Phase::PhotonTrace,
+        params.global_photons + params.caustic_photons,
+    );
+    let global = trace(
+        scene,
+        params.global_photons,
+        Target::Global(params.store),
+        params.max_depth,
+        params.seed,
+        control,
+        &tracker,
+    )?;
+    let caustic = trace(
+        scene,
+        params.caustic_photons,
+        Target::Caustic,
+        params.max_depth,
+        params.seed,
+        control,
+        &tracker,
+    )?;
+    tracker.finish();
+    Ok((global, caustic))
+}
+
+/// Trace and build the photon maps for `params` (a map with 0 photons is not built).
+pub fn build_photon_maps(
+    scene: &Scene,
+    params: &PhotonParams,
+    control: &Control,
+) -> Result<PhotonMaps, Cancelled> {
+    let t0 = Instant::now();
+    let (global, caustic) = trace_photons(scene, params, control)?;
+    let trace_seconds = t0.elapsed().as_secs_f64();
+    control.check()?;
+    let t1 = Instant::now();
+    let tracker = control.tracker(Phase::BuildMaps, 2);
+    let make = |t: TraceOutput| (t.emitted > 0).then(|| PhotonMap::new(t.photons, t.emitted));
+    let (global, caustic) = rayon::join(|| make(global), || make(caustic));
+    tracker.finish();
+    Ok(PhotonMaps {
+        global,
+        caustic,
+        params: params.clone(),
+        trace_seconds,
+        build_seconds: t1.elapsed().as_secs_f64(),
+    })
+}

@@ -1,0 +1,151 @@
+//! A render, phase by phase: analyse the job, trace and build photon maps, precompute
+//! irradiance, run the camera pass. The maps are a separate value so that a caller (the
+//! server's cache) can reuse them for another camera, resolution, k or spp.
+
+use std::time::Instant;
+
+use crate::render::control::{Cancelled, Control};
+use crate::render::effects::analyse;
+use crate::render::film::{Image, render_film};
+use crate::render::integrator::{RenderParams, Shader};
+use crate::render::photon::{IrradianceCache, Photon, PhotonMaps, build_photon_maps};
+use crate::render::scene::Scene;
+use crate::render::stats::{ParamsEcho, PhotonCounts, Radius, RenderStats, Times};
+
+/// k-NN searches in the global map reach at most this fraction of the scene's extent.
+const GLOBAL_SEARCH_FRACTION: f32 = 0.1;
+
+/// k-NN searches in the caustic map reach at most this fraction of the scene's extent:
+/// caustics are sharp, and a tight bound keeps queries where no caustic falls cheap.
+const CAUSTIC_SEARCH_FRACTION: f32 = 0.02;
+
+/// An image and the statistics of the render that made it.
+pub struct RenderOutput {
+    pub image: Image,
+    pub stats: RenderStats,
+}
+
+/// Trace the photon maps a job needs (none for `raytrace`).
+pub fn trace_maps(
+    scene: &Scene,
+    params: &RenderParams,
+    control: &Control,
+) -> Result<PhotonMaps, Cancelled> {
+    let analysis = analyse(scene, params);
+    build_photon_maps(scene, &analysis.photon_params, control)
+}
+
+/// A full render: photon maps, then the camera pass.
+pub fn render(
+    scene: &Scene,
+    params: &RenderParams,
+    control: &Control,
+) -> Result<RenderOutput, Cancelled> {
+    let maps = trace_maps(scene, params, control)?;
+    render_with_maps(scene, &maps, params, control)
+}
+
+/// The camera pass over existing photon maps (traced for the same scene and for photon
+/// parameters equal to those `params` implies).
+pub fn render_with_maps(
+    scene: &Scene,
+    maps: &PhotonMaps,
+    params: &RenderParams,
+    control: &Control,
+) -> Result<RenderOutput, Cancelled> {
+    let analysis = analyse(scene, params);
+    let plan = analysis.plan;
+    let extent = scene.extent().max(f32::MIN_POSITIVE);
+    let global_max = GLOBAL_SEARCH_FRACTION * extent;
+    let caustic_max = CAUSTIC_SEARCH_FRACTION * extent;
+
+    let t_pre = Instant::now();
+    let classes = plan.global_classes();
+    let cache = match &maps.global {
+        Some(g) if !classes.is_empty() => Some(IrradianceCache::build(
+            g,
+            params.k,
+            global_max * global_max,
+            classes,
+            control,
+        )?),
+        _ => None,
+    };
+    let precompute = t_pre.elapsed().as_secs_f64();
+
+    let camera = scene.camera.clone().with_resolution(
+        params.width.unwrap_or(scene.camera.width),
+        params.height.unwrap_or(scene.camera.height),
+    );
+    let shader = Shader {
+        scene,
+        plan,
+        caustic: maps.caustic.as_ref(),
+        global: cache.as_ref(),
+        k: params.k,
+        caustic_r2_max: caustic_max * caustic_max,
+        gather_rays: params.gather_rays,
+        max_depth: params.max_depth,
+    };
+    let t_render = Instant::now();
+    let film = render_film(&shader, &camera, params.spp, params.seed, control)?;
+    let render = t_render.elapsed().as_secs_f64();
+
+    let count = |m: &Option<crate::render::photon::PhotonMap>| {
+        m.as_ref().map_or((0, 0), |m| (m.emitted, m.len() as u64))
+    };
+    let (global_emitted, global_stored) = count(&maps.global);
+    let (caustic_emitted, caustic_stored) = count(&maps.caustic);
+    let stats = RenderStats {
+        scene: scene.name.clone(),
+        params: ParamsEcho {
+            integrator: params.integrator.name().into(),
+            photons: params.photons,
+            caustic_photons: params.caustic_photons,
+            k: params.k,
+            photon_store: params.photon_store.name().into(),
+            gather_rays: params.gather_rays,
+            spp: params.spp,
+            max_depth: params.max_depth,
+            seed: params.seed,
+            width: camera.width,
+            height: camera.height,
+        },
+        times: Times {
+            photon_trace: maps.trace_seconds,
+            build_maps: maps.build_seconds,
+            precompute,
+            render,
+            total: maps.trace_seconds + maps.build_seconds + precompute + render,
+        },
+        photons: PhotonCounts {
+            global_emitted,
+            global_stored,
+            caustic_emitted,
+            caustic_stored,
+            map_bytes: maps.bytes() as u64,
+            bytes_per_photon: std::mem::size_of::<Photon>() as u64,
+            irradiance_points: cache.as_ref().map_or(0, |c| c.len() as u64),
+        },
+        effects: analysis.effects,
+        radius: Radius {
+            caustic_max: if maps.caustic.is_some() {
+                caustic_max as f64
+            } else {
+                0.0
+            },
+            global_rms: cache.as_ref().map_or(0.0, |c| c.mean_r2.sqrt()),
+            global_max: if cache.is_some() {
+                global_max as f64
+            } else {
+                0.0
+            },
+        },
+        nonfinite_samples: film.nonfinite_samples,
+        threads: rayon::current_num_threads(),
+    };
+    Ok(RenderOutput {
+        image: film.image,
+        stats,
+    })
+}

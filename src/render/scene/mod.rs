@@ -1,0 +1,344 @@
+//! Scenes: the JSON format (`format`), its validation (`load`), and the immutable [`Scene`]
+//! the renderer reads.
+//!
+//! The loader works in f64 and hands the engine f32 coordinates relative to the centre of the
+//! scene's bounds. With no absolute epsilon anywhere (see `geometry`), this makes an image
+//! independent of where the scene sits in space and of its scale.
+
+mod format;
+mod load;
+
+use std::fmt;
+use std::path::Path;
+
+use glam::{DVec3, Vec3A};
+use serde_json::Value;
+
+pub use format::CameraDef;
+
+use crate::render::camera::Camera;
+use crate::render::geometry::{Accel, Hit, PrimId, Primitive, Ray, Shape, Surface};
+use crate::render::light::Light;
+use crate::render::material::Material;
+use crate::render::math::Rgb;
+
+/// A scene the loader rejected: the JSON path of the offending value and what is wrong.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SceneError {
+    pub path: String,
+    pub message: String,
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.path, self.message)
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+/// A validated scene in world coordinates (f64), as the JSON describes it.
+#[derive(Debug)]
+pub struct SceneDesc {
+    pub name: Option<String>,
+    pub description: Option<String>,
+    pub camera: CameraDef,
+    pub materials: Vec<Material>,
+    pub material_names: Vec<String>,
+    pub objects: Vec<ObjectDesc>,
+    pub lights: Vec<LightDesc>,
+}
+
+#[derive(Debug)]
+pub struct ObjectDesc {
+    pub material: u32,
+    pub shape: ShapeDesc,
+}
+
+#[derive(Debug)]
+pub enum ShapeDesc {
+    Sphere {
+        center: DVec3,
+        radius: f64,
+    },
+    Quad {
+        corner: DVec3,
+        edge_u: DVec3,
+        edge_v: DVec3,
+    },
+    Mesh(MeshData),
+}
+
+#[derive(Debug)]
+pub struct MeshData {
+    pub positions: Vec<DVec3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+#[derive(Debug)]
+pub enum LightDesc {
+    Point {
+        position: DVec3,
+        power: Rgb,
+    },
+    Sphere {
+        center: DVec3,
+        radius: f64,
+        radiance: Rgb,
+    },
+    Quad {
+        corner: DVec3,
+        edge_u: DVec3,
+        edge_v: DVec3,
+        radiance: Rgb,
+    },
+}
+
+impl SceneDesc {
+    pub fn parse(text: &str, base_dir: Option<&Path>) -> Result<SceneDesc, SceneError> {
+        load::parse(text, base_dir)
+    }
+
+    pub fn from_value(value: Value, base_dir: Option<&Path>) -> Result<SceneDesc, SceneError> {
+        load::parse_value(value, base_dir)
+    }
+
+    /// Read and parse a scene file; `obj` paths resolve against its folder.
+    pub fn load(path: &Path) -> Result<SceneDesc, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            path: "scene".into(),
+            message: format!("cannot read {}: {e}", path.display()),
+        })?;
+        let dir = path.parent().map(|d| {
+            if d.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                d
+            }
+        });
+        load::parse(&text, dir)
+    }
+
+    /// Axis-aligned bounds of all objects and lights (the camera excluded).
+    fn bounds(&self) -> Option<(DVec3, DVec3)> {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        let mut add = |p: DVec3| {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        };
+        let add_quad = |c: DVec3, u: DVec3, v: DVec3, add: &mut dyn FnMut(DVec3)| {
+            for p in [c, c + u, c + v, c + u + v] {
+                add(p);
+            }
+        };
+        for o in &self.objects {
+            match &o.shape {
+                ShapeDesc::Sphere { center, radius } => {
+                    add(*center - *radius);
+                    add(*center + *radius);
+                }
+                ShapeDesc::Quad {
+                    corner,
+                    edge_u,
+                    edge_v,
+                } => add_quad(*corner, *edge_u, *edge_v, &mut add),
+                ShapeDesc::Mesh(m) => m.positions.iter().for_each(|p| add(*p)),
+            }
+        }
+        for l in &self.lights {
+            match l {
+                LightDesc::Point { position, .. } => add(*position),
+                LightDesc::Sphere { center, radius, .. } => {
+                    add(*center - *radius);
+                    add(*center + *radius);
+                }
+                LightDesc::Quad {
+                    corner,
+                    edge_u,
+                    edge_v,
+                    ..
+                } => add_quad(*corner, *edge_u, *edge_v, &mut add),
+            }
+        }
+        (lo.x <= hi.x).then_some((lo, hi))
+    }
+}
+
+/// The immutable scene the renderer reads: f32 geometry relative to `frame_origin`, a BVH,
+/// materials and lights. Shared between threads by reference.
+pub struct Scene {
+    pub name: Option<String>,
+    pub camera: Camera,
+    pub materials: Vec<Material>,
+    pub material_names: Vec<String>,
+    pub lights: Vec<Light>,
+    pub accel: Accel,
+    /// World position of the engine frame's origin (the centre of the scene bounds).
+    pub frame_origin: DVec3,
+    /// Bounds of objects and lights in the engine frame.
+    pub bounds_min: Vec3A,
+    pub bounds_max: Vec3A,
+    pub triangle_count: usize,
+}
+
+impl Scene {
+    pub fn parse(text: &str, base_dir: Option<&Path>) -> Result<Scene, SceneError> {
+        Ok(Scene::build(&SceneDesc::parse(text, base_dir)?))
+    }
+
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        Ok(Scene::build(&SceneDesc::load(path)?))
+    }
+
+    pub fn build(desc: &SceneDesc) -> Scene {
+        let (lo, hi) = desc.bounds().unwrap_or((DVec3::ZERO, DVec3::ZERO));
+        let origin = (lo + hi) * 0.5;
+        let local = |p: DVec3| (p - origin).as_vec3a();
+        let vec = |v: DVec3| v.as_vec3a();
+
+        let mut prims = Vec::new();
+        let mut triangle_count = 0;
+        for o in &desc.objects {
+            let surface = Surface::Material(o.material);
+            match &o.shape {
+                ShapeDesc::Sphere { center, radius } => prims.push(Primitive {
+                    shape: Shape::Sphere {
+                        center: local(*center),
+                        radius: *radius as f32,
+                    },
+                    surface,
+                }),
+                ShapeDesc::Quad {
+                    corner,
+                    edge_u,
+                    edge_v,
+                } => prims.push(Primitive {
+                    shape: Shape::quad(local(*corner), vec(*edge_u), vec(*edge_v)),
+                    surface,
+                }),
+                ShapeDesc::Mesh(m) => {
+                    let pos: Vec<Vec3A> = m.positions.iter().map(|p| local(*p)).collect();
+                    triangle_count += m.triangles.len();
+                    prims.extend(m.triangles.iter().map(|t| Primitive {
+                        shape: Shape::Triangle {
+                            p0: pos[t[0] as usize],
+                            p1: pos[t[1] as usize],
+                            p2: pos[t[2] as usize],
+                        },
+                        surface,
+                    }));
+                }
+            }
+        }
+        for (i, l) in desc.lights.iter().enumerate() {
+            let surface = Surface::Light(i as u32);
+            match l {
+                LightDesc::Point { .. } => {}
+                LightDesc::Sphere { center, radius, .. } => prims.push(Primitive {
+                    shape: Shape::Sphere {
+                        center: local(*center),
+                        radius: *radius as f32,
+                    },
+                    surface,
+                }),
+                LightDesc::Quad {
+                    corner,
+                    edge_u,
+                    edge_v,
+                    ..
+                } => prims.push(Primitive {
+                    shape: Shape::quad(local(*corner), vec(*edge_u), vec(*edge_v)),
+                    surface,
+                }),
+            }
+        }
+        let accel = Accel::build(prims);
+        let prim_of_light = |i: usize| -> PrimId {
+            accel
+                .prims()
+                .iter()
+                .position(|p| p.surface == Surface::Light(i as u32))
+                .map_or(crate::render::geometry::NO_PRIM, |p| p as PrimId)
+        };
+        let lights = desc
+            .lights
+            .iter()
+            .enumerate()
+            .map(|(i, l)| match l {
+                LightDesc::Point { position, power } => Light::Point {
+                    position: local(*position),
+                    power: *power,
+                },
+                LightDesc::Sphere {
+                    center,
+                    radius,
+                    radiance,
+                } => Light::Sphere {
+                    center: local(*center),
+                    radius: *radius as f32,
+                    radiance: *radiance,
+                    prim: prim_of_light(i),
+                },
+                LightDesc::Quad {
+                    corner,
+                    edge_u,
+                    edge_v,
+                    radiance,
+                } => {
+                    let c = vec(*edge_u).cross(vec(*edge_v));
+                    Light::Quad {
+                        corner: local(*corner),
+                        edge_u: vec(*edge_u),
+                        edge_v: vec(*edge_v),
+                        n: c.normalize(),
+                        area: c.length(),
+                        radiance: *radiance,
+                        prim: prim_of_light(i),
+                    }
+                }
+            })
+            .collect();
+        let c = &desc.camera;
+        let camera = Camera::new(
+            local(DVec3::from_array(c.position.0)),
+            local(DVec3::from_array(c.look_at.0)),
+            DVec3::from_array(c.up.0).as_vec3a(),
+            c.fov.0 as f32,
+            c.width,
+            c.height,
+        );
+        Scene {
+            name: desc.name.clone(),
+            camera,
+            materials: desc.materials.clone(),
+            material_names: desc.material_names.clone(),
+            lights,
+            accel,
+            frame_origin: origin,
+            bounds_min: local(lo),
+            bounds_max: local(hi),
+            triangle_count,
+        }
+    }
+
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.accel.intersect(ray)
+    }
+
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.accel.occluded(ray)
+    }
+
+    #[inline]
+    pub fn surface(&self, prim: PrimId) -> Surface {
+        self.accel.prims()[prim as usize].surface
+    }
+
+    /// Length of the diagonal of the scene bounds: the scene's own length scale.
+    pub fn extent(&self) -> f32 {
+        (self.bounds_max - self.bounds_min).length()
+    }
+}
