@@ -13,9 +13,9 @@
 use glam::Vec3A;
 use rayon::prelude::*;
 
-use super::{ClassMask, IRRADIANCE_STRIDE, KdItem, KdTree, KnnHeap, PhotonMap};
+use super::{ClassMask, IRRADIANCE_STRIDE, KdItem, KdTree, KnnScratch, PhotonMap};
 use crate::render::control::{Cancelled, Control, Phase};
-use crate::render::math::{Rgb, decode_oct16, encode_oct16};
+use crate::render::math::Rgb;
 
 /// Minimum cosine between a photon's surface normal and the query's.
 const NORMAL_COS: f32 = 0.8;
@@ -50,21 +50,17 @@ pub fn irradiance_knn(
     r2_max: f32,
     classes: ClassMask,
     skip_marked: bool,
-    heap: &mut KnnHeap,
+    scratch: &mut KnnScratch,
 ) -> RadianceEstimate {
     let filter = |ph: &super::Photon| {
         classes.contains(ph.class())
             && ph.normal().dot(n_side) > NORMAL_COS
             && !(skip_marked && ph.is_irradiance_point())
     };
-    let r2 = map.tree.knn(p, k + 1, r2_max, &filter, heap);
-    let entries = heap.entries();
-    // With k+1 found the farthest (first in the heap) only sets the radius.
-    let inner = if entries.len() == k + 1 {
-        &entries[1..]
-    } else {
-        entries
-    };
+    let r2 = map.tree.knn(p, k + 1, r2_max, &filter, scratch);
+    let found = scratch.found();
+    // With k+1 found the farthest (the last) only sets the radius.
+    let inner = if found.len() == k + 1 { &found[..k] } else { found };
     if inner.is_empty() || !(r2 > 0.0) {
         return RadianceEstimate {
             r2,
@@ -94,32 +90,33 @@ pub fn caustic_irradiance(
     n_side: Vec3A,
     k: usize,
     r2_max: f32,
-    heap: &mut KnnHeap,
+    scratch: &mut KnnScratch,
 ) -> RadianceEstimate {
-    irradiance_knn(map, p, n_side, k, r2_max, ClassMask::ALL, false, heap)
+    irradiance_knn(map, p, n_side, k, r2_max, ClassMask::ALL, false, scratch)
 }
 
 /// A point with precomputed irradiance (a "radiance photon").
 #[derive(Clone, Copy, Debug)]
+/// Kept small (20 bytes) so that a search touches few cache lines: the irradiance itself
+/// lives in a separate array at `index`.
 struct IrradiancePoint {
     pos: [f32; 3],
-    /// Irradiance per path class.
-    e: [[f32; 3]; 3],
-    n: u16,
-    axis: u8,
+    index: u32,
+    /// Surface normal as i8 components of length 127 (as in [`super::Photon`]).
+    n: [i8; 3],
+}
+
+impl IrradiancePoint {
+    #[inline]
+    fn normal_dot(&self, v: Vec3A) -> f32 {
+        (self.n[0] as f32 * v.x + self.n[1] as f32 * v.y + self.n[2] as f32 * v.z) * (1.0 / 127.0)
+    }
 }
 
 impl KdItem for IrradiancePoint {
     #[inline]
     fn position(&self) -> Vec3A {
         Vec3A::from_array(self.pos)
-    }
-    #[inline]
-    fn axis(&self) -> usize {
-        self.axis as usize
-    }
-    fn set_axis(&mut self, axis: usize) {
-        self.axis = axis as u8;
     }
 }
 
@@ -139,6 +136,8 @@ impl KdItem for IrradiancePoint {
 /// cached, camera-independent photon map.
 pub struct IrradianceCache {
     tree: KdTree<IrradiancePoint>,
+    /// Irradiance per path class of each point, by `IrradiancePoint::index`.
+    irradiance: Vec<[[f32; 3]; 3]>,
     r2_max: f32,
     /// Mean squared k-NN radius over the points (reported in the stats).
     pub mean_r2: f64,
@@ -159,9 +158,9 @@ impl IrradianceCache {
         let scale = IRRADIANCE_STRIDE as f32 / (IRRADIANCE_STRIDE - 1) as f32;
         let tracker = control.tracker(Phase::Precompute, picks.len() as u64);
         const CHUNK: usize = 1024;
-        let parts: Vec<Vec<(IrradiancePoint, f32)>> = picks
+        let parts: Vec<Vec<([[f32; 3]; 3], f32)>> = picks
             .par_chunks(CHUNK)
-            .map_init(KnnHeap::default, |heap, chunk| {
+            .map_init(KnnScratch::default, |scratch, chunk| {
                 control.check()?;
                 let out = chunk
                     .iter()
@@ -169,50 +168,57 @@ impl IrradianceCache {
                         let ph = &photons[i];
                         let n = ph.normal();
                         let est =
-                            irradiance_knn(map, ph.position(), n, k, r2_max, classes, true, heap);
-                        let point = IrradiancePoint {
-                            pos: ph.pos,
-                            e: est.by_class.map(|c| (c * scale).to_array()),
-                            n: encode_oct16(n),
-                            axis: 0,
-                        };
-                        (point, est.r2)
+                            irradiance_knn(map, ph.position(), n, k, r2_max, classes, true, scratch);
+                        (est.by_class.map(|c| (c * scale).to_array()), est.r2)
                     })
                     .collect();
                 tracker.advance(chunk.len() as u64);
                 Ok(out)
             })
             .collect::<Result<_, Cancelled>>()?;
-        let mut points = Vec::with_capacity(picks.len());
+        let mut irradiance = Vec::with_capacity(picks.len());
         let mut r2_sum = 0.0f64;
         for part in parts {
-            for (p, r2) in part {
+            for (e, r2) in part {
                 r2_sum += r2 as f64;
-                points.push(p);
+                irradiance.push(e);
             }
         }
-        let mean_r2 = if points.is_empty() {
+        let points: Vec<IrradiancePoint> = picks
+            .iter()
+            .enumerate()
+            .map(|(index, &i)| IrradiancePoint {
+                pos: photons[i].pos,
+                index: index as u32,
+                n: photons[i].normal_i8(),
+            })
+            .collect();
+        let mean_r2 = if irradiance.is_empty() {
             0.0
         } else {
             r2_sum / points.len() as f64
         };
         Ok(IrradianceCache {
             tree: KdTree::build(points),
+            irradiance,
             r2_max,
             mean_r2,
         })
     }
 
     /// Irradiance of `classes` at the nearest point on a surface facing like `n_side`; zero
-    /// if none is within the search bound.
+    /// if none is within the search bound. `hint` carries the last answer between calls
+    /// (nearby queries mostly share their nearest point; see [`KdTree::nearest`]).
     #[inline]
-    pub fn lookup(&self, p: Vec3A, n_side: Vec3A, classes: ClassMask) -> Rgb {
-        let filter = |q: &IrradiancePoint| decode_oct16(q.n).dot(n_side) > NORMAL_COS;
-        let Some((q, _)) = self.tree.nearest(p, self.r2_max, &filter) else {
+    pub fn lookup(&self, p: Vec3A, n_side: Vec3A, classes: ClassMask, hint: &mut Option<u32>) -> Rgb {
+        let filter = |q: &IrradiancePoint| q.normal_dot(n_side) > NORMAL_COS;
+        let Some((i, _)) = self.tree.nearest(p, self.r2_max, &filter, *hint) else {
             return Rgb::ZERO;
         };
+        *hint = Some(i);
+        let by_class = &self.irradiance[self.tree.items()[i as usize].index as usize];
         let mut e = Rgb::ZERO;
-        for (c, v) in q.e.iter().enumerate() {
+        for (c, v) in by_class.iter().enumerate() {
             if classes.0 & (1 << c) != 0 {
                 e += Rgb::from_array(*v);
             }

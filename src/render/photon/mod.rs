@@ -10,7 +10,7 @@ mod kdtree;
 mod trace;
 
 pub use estimate::{IrradianceCache, RadianceEstimate, caustic_irradiance, irradiance_knn};
-pub use kdtree::{KdItem, KdTree, KnnHeap};
+pub use kdtree::{KdItem, KdTree, KnnScratch};
 pub use trace::{PhotonParams, PhotonStore, TraceOutput, build_photon_maps, trace_photons};
 
 use glam::Vec3A;
@@ -58,19 +58,20 @@ impl ClassMask {
     }
 }
 
-/// A stored photon: 32 bytes (position 12, flux 12, two 16-bit octahedral directions, flags).
+/// A stored photon: 32 bytes (position 12, flux 12, incoming direction 2, normal 3, flags 1).
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
 pub struct Photon {
     pub pos: [f32; 3],
     pub power: [f32; 3],
-    /// Unit direction toward where the photon came from.
+    /// Unit direction toward where the photon came from (16-bit octahedral).
     wi: u16,
-    /// Surface normal on the side the photon arrived from.
-    n: u16,
-    /// Bits 0-1: PathClass; bits 2-3: kd-tree split axis; bit 4: irradiance point.
+    /// Surface normal on the side the photon arrived from, as i8 components of length 127:
+    /// the side test of every candidate photon is then three multiply-adds.
+    n: [i8; 3],
+    /// Bits 0-1: PathClass; bit 2: irradiance point.
     flags: u8,
-    _pad: [u8; 3],
+    _pad: [u8; 2],
 }
 
 const _: () = assert!(std::mem::size_of::<Photon>() == 32);
@@ -79,7 +80,7 @@ const _: () = assert!(std::mem::size_of::<Photon>() == 32);
 /// [`IrradianceCache`]).
 pub const IRRADIANCE_STRIDE: u64 = 4;
 
-const IRRADIANCE_POINT: u8 = 1 << 4;
+const IRRADIANCE_POINT: u8 = 1 << 2;
 
 impl Photon {
     pub fn new(
@@ -94,14 +95,9 @@ impl Photon {
             pos: pos.to_array(),
             power: power.to_array(),
             wi: encode_oct16(wi),
-            n: encode_oct16(n_side),
-            flags: class as u8
-                | if irradiance_point {
-                    IRRADIANCE_POINT
-                } else {
-                    0
-                },
-            _pad: [0; 3],
+            n: n_side.to_array().map(|c| (c * 127.0).round() as i8),
+            flags: class as u8 | if irradiance_point { IRRADIANCE_POINT } else { 0 },
+            _pad: [0; 2],
         }
     }
 
@@ -121,9 +117,16 @@ impl Photon {
         decode_oct16(self.wi)
     }
 
+    /// The stored normal's i8 components (length 127).
+    #[inline]
+    pub fn normal_i8(&self) -> [i8; 3] {
+        self.n
+    }
+
+    /// The (approximately unit) surface normal.
     #[inline]
     pub fn normal(&self) -> Vec3A {
-        decode_oct16(self.n)
+        Vec3A::new(self.n[0] as f32, self.n[1] as f32, self.n[2] as f32) * (1.0 / 127.0)
     }
 
     #[inline]
@@ -140,13 +143,6 @@ impl KdItem for Photon {
     #[inline]
     fn position(&self) -> Vec3A {
         Vec3A::from_array(self.pos)
-    }
-    #[inline]
-    fn axis(&self) -> usize {
-        ((self.flags >> 2) & 3) as usize
-    }
-    fn set_axis(&mut self, axis: usize) {
-        self.flags = (self.flags & !0b1100) | ((axis as u8) << 2);
     }
 }
 
@@ -173,9 +169,9 @@ impl PhotonMap {
         self.tree.is_empty()
     }
 
-    /// Memory held by the photons (the tree adds nothing).
+    /// Memory held by the photons and the tree's splits.
     pub fn bytes(&self) -> usize {
-        self.tree.len() * std::mem::size_of::<Photon>()
+        self.tree.len() * std::mem::size_of::<Photon>() + self.tree.overhead_bytes()
     }
 
     /// Total stored flux, summed in f64 so that millions of photons lose no precision.
