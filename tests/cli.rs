@@ -63,7 +63,11 @@ fn render_writes_png_exr_and_stats() {
     assert_eq!(s["photons"]["caustic_emitted"], 20000);
     assert!(s["photons"]["global_stored"].as_u64().unwrap() > 0);
     assert!(s["photons"]["caustic_stored"].as_u64().unwrap() > 0);
-    assert_eq!(s["photons"]["bytes_per_photon"], 32);
+    let bpp = s["photons"]["bytes_per_photon"].as_f64().unwrap();
+    assert!(
+        (24.0..=32.0).contains(&bpp),
+        "{bpp} bytes per stored photon"
+    );
     assert_eq!(s["effects"]["caustics"]["simulated"], true);
     assert_eq!(s["nonfinite_samples"], 0);
     assert!(s["radius"]["caustic_max"].as_f64().unwrap() > 0.0);

@@ -8,7 +8,9 @@ use crate::render::control::{Cancelled, Control};
 use crate::render::effects::analyse;
 use crate::render::film::{Image, render_film};
 use crate::render::integrator::{RenderParams, Shader};
-use crate::render::photon::{IrradianceCache, Photon, PhotonMaps, build_photon_maps};
+use crate::render::photon::{
+    CausticLookup, IrradianceCache, Photon, PhotonMaps, build_photon_maps,
+};
 use crate::render::scene::Scene;
 use crate::render::stats::{ParamsEcho, PhotonCounts, Radius, RenderStats, Times};
 
@@ -80,10 +82,11 @@ pub fn render_with_maps(
     let shader = Shader {
         scene,
         plan,
-        caustic: maps.caustic.as_ref(),
+        caustic: maps
+            .caustic
+            .as_ref()
+            .map(|m| CausticLookup::new(m, params.k, caustic_max)),
         global: cache.as_ref(),
-        k: params.k,
-        caustic_r2_max: caustic_max * caustic_max,
         gather_rays: params.gather_rays,
         max_depth: params.max_depth,
     };
@@ -124,7 +127,11 @@ pub fn render_with_maps(
             caustic_emitted,
             caustic_stored,
             map_bytes: maps.bytes() as u64,
-            bytes_per_photon: std::mem::size_of::<Photon>() as u64,
+            bytes_per_photon: if global_stored + caustic_stored > 0 {
+                maps.bytes() as f64 / (global_stored + caustic_stored) as f64
+            } else {
+                std::mem::size_of::<Photon>() as f64
+            },
             irradiance_points: cache.as_ref().map_or(0, |c| c.len() as u64),
         },
         effects: analysis.effects,

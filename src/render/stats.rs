@@ -19,9 +19,10 @@ pub struct PhotonCounts {
     pub global_stored: u64,
     pub caustic_emitted: u64,
     pub caustic_stored: u64,
-    /// Bytes held by the photon maps.
+    /// Bytes held by the photon maps (photons and kd-tree).
     pub map_bytes: u64,
-    pub bytes_per_photon: u64,
+    /// map_bytes per stored photon.
+    pub bytes_per_photon: f64,
     /// Points with precomputed irradiance used by this render.
     pub irradiance_points: u64,
 }

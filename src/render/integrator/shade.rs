@@ -6,7 +6,7 @@ use super::{Plan, VertexPlan};
 use crate::render::geometry::{Hit, Ray, Surface, SurfacePoint, spawn_ray, spawn_ray_to};
 use crate::render::material::{Material, SpecularBranch, Transport};
 use crate::render::math::{Frame, Rgb, luminance, reflect};
-use crate::render::photon::{IrradianceCache, KnnScratch, PhotonMap, caustic_irradiance};
+use crate::render::photon::{CausticLookup, IrradianceCache, KnnScratch};
 use crate::render::sampling::{Sampler, cosine_hemisphere, power_cosine};
 use crate::render::scene::Scene;
 
@@ -21,11 +21,8 @@ const SPLIT_MIN_WEIGHT: f32 = 0.15;
 pub struct Shader<'a> {
     pub scene: &'a Scene,
     pub plan: Plan,
-    pub caustic: Option<&'a PhotonMap>,
+    pub caustic: Option<CausticLookup<'a>>,
     pub global: Option<&'a IrradianceCache>,
-    pub k: usize,
-    /// Bound of the caustic k-NN search (squared).
-    pub caustic_r2_max: f32,
     pub gather_rays: u32,
     pub max_depth: u32,
 }
@@ -144,22 +141,16 @@ impl Shader<'_> {
         }
         if rho != Rgb::ZERO {
             if vertex.caustic_map
-                && let Some(cm) = self.caustic
+                && let Some(cm) = &self.caustic
             {
-                let est = caustic_irradiance(
-                    cm,
-                    sp.p,
-                    n_side,
-                    self.k,
-                    self.caustic_r2_max,
-                    &mut scratch.knn,
-                );
-                l += rho * FRAC_1_PI * est.irradiance;
+                l += rho * FRAC_1_PI * cm.irradiance(sp.p, n_side, &mut scratch.knn);
             }
             if !vertex.global.is_empty()
                 && let Some(cache) = self.global
             {
-                l += rho * FRAC_1_PI * cache.lookup(sp.p, n_side, vertex.global, &mut scratch.global_hint);
+                l += rho
+                    * FRAC_1_PI
+                    * cache.lookup(sp.p, n_side, vertex.global, &mut scratch.global_hint);
             }
             if vertex.gather {
                 l += rho * self.final_gather(sp, n_side, depth, s, scratch);

@@ -13,6 +13,7 @@
 use glam::Vec3A;
 use rayon::prelude::*;
 
+use super::occupancy::OccupancyGrid;
 use super::{ClassMask, IRRADIANCE_STRIDE, KdItem, KdTree, KnnScratch, PhotonMap};
 use crate::render::control::{Cancelled, Control, Phase};
 use crate::render::math::Rgb;
@@ -60,7 +61,11 @@ pub fn irradiance_knn(
     let r2 = map.tree.knn(p, k + 1, r2_max, &filter, scratch);
     let found = scratch.found();
     // With k+1 found the farthest (the last) only sets the radius.
-    let inner = if found.len() == k + 1 { &found[..k] } else { found };
+    let inner = if found.len() == k + 1 {
+        &found[..k]
+    } else {
+        found
+    };
     if inner.is_empty() || !(r2 > 0.0) {
         return RadianceEstimate {
             r2,
@@ -71,15 +76,44 @@ pub fn irradiance_knn(
     let mut by_class = [Rgb::ZERO; 3];
     for &(_, i) in inner {
         let ph = &items[i as usize];
-        by_class[ph.class() as usize] += ph.power();
+        by_class[ph.class() as usize] += ph.relative_power();
     }
-    let scale = 1.0 / (std::f32::consts::PI * r2);
+    let scale = map.unit / (std::f32::consts::PI * r2);
     let by_class = by_class.map(|c| c * scale);
     RadianceEstimate {
         irradiance: by_class[0] + by_class[1] + by_class[2],
         by_class,
         r2,
         count: inner.len() as u32,
+    }
+}
+
+/// Per-pixel irradiance estimates from a caustic map (Jensen: caustics are estimated at
+/// every camera path vertex, for sharpness). An occupancy grid skips the search wherever no
+/// caustic photon lies within reach, which is most of a scene.
+pub struct CausticLookup<'a> {
+    pub map: &'a PhotonMap,
+    grid: Option<OccupancyGrid>,
+    pub k: usize,
+    pub r2_max: f32,
+}
+
+impl<'a> CausticLookup<'a> {
+    pub fn new(map: &'a PhotonMap, k: usize, r_max: f32) -> CausticLookup<'a> {
+        CausticLookup {
+            map,
+            grid: OccupancyGrid::build(map, r_max),
+            k,
+            r2_max: r_max * r_max,
+        }
+    }
+
+    #[inline]
+    pub fn irradiance(&self, p: Vec3A, n_side: Vec3A, scratch: &mut KnnScratch) -> Rgb {
+        if self.grid.as_ref().is_some_and(|g| !g.maybe_occupied(p)) {
+            return Rgb::ZERO;
+        }
+        caustic_irradiance(self.map, p, n_side, self.k, self.r2_max, scratch).irradiance
     }
 }
 
@@ -167,8 +201,16 @@ impl IrradianceCache {
                     .map(|&i| {
                         let ph = &photons[i];
                         let n = ph.normal();
-                        let est =
-                            irradiance_knn(map, ph.position(), n, k, r2_max, classes, true, scratch);
+                        let est = irradiance_knn(
+                            map,
+                            ph.position(),
+                            n,
+                            k,
+                            r2_max,
+                            classes,
+                            true,
+                            scratch,
+                        );
                         (est.by_class.map(|c| (c * scale).to_array()), est.r2)
                     })
                     .collect();
@@ -210,7 +252,13 @@ impl IrradianceCache {
     /// if none is within the search bound. `hint` carries the last answer between calls
     /// (nearby queries mostly share their nearest point; see [`KdTree::nearest`]).
     #[inline]
-    pub fn lookup(&self, p: Vec3A, n_side: Vec3A, classes: ClassMask, hint: &mut Option<u32>) -> Rgb {
+    pub fn lookup(
+        &self,
+        p: Vec3A,
+        n_side: Vec3A,
+        classes: ClassMask,
+        hint: &mut Option<u32>,
+    ) -> Rgb {
         let filter = |q: &IrradiancePoint| q.normal_dot(n_side) > NORMAL_COS;
         let Some((i, _)) = self.tree.nearest(p, self.r2_max, &filter, *hint) else {
             return Rgb::ZERO;

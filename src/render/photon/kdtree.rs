@@ -141,7 +141,11 @@ impl<T: KdItem> KdTree<T> {
         } else {
             GUESS_SLACK * k as f32 / (std::f32::consts::PI * self.density_hint)
         };
-        let mut r2 = if guess > 0.0 && guess < r2_max { guess } else { r2_max };
+        let mut r2 = if guess > 0.0 && guess < r2_max {
+            guess
+        } else {
+            r2_max
+        };
         loop {
             scratch.found.clear();
             let found = &mut scratch.found;
@@ -299,7 +303,9 @@ fn balance<T: KdItem>(items: &mut [T], node: usize, out: &mut Vec<(usize, Split)
         2
     };
     let mid = halves(0, items.len());
-    items.select_nth_unstable_by(mid, |a, b| a.position()[axis].total_cmp(&b.position()[axis]));
+    items.select_nth_unstable_by(mid, |a, b| {
+        a.position()[axis].total_cmp(&b.position()[axis])
+    });
     out.push((
         node,
         Split {
@@ -341,7 +347,11 @@ mod tests {
         let mut s = Sampler::new(9, Stream::Camera, 0);
         (0..n)
             .map(|i| P {
-                p: Vec3A::new(s.next_f32(), s.next_f32(), (s.next_f32() * 4.0).floor() * 0.25),
+                p: Vec3A::new(
+                    s.next_f32(),
+                    s.next_f32(),
+                    (s.next_f32() * 4.0).floor() * 0.25,
+                ),
                 id: i as u32,
             })
             .collect()
@@ -361,7 +371,11 @@ mod tests {
                 scratch.r2_guess = [1e-9, 10.0, 0.0][i % 9 / 3];
             }
             let r2 = tree.knn(q, 17, f32::INFINITY, &odd, &mut scratch);
-            let mut got: Vec<u32> = scratch.found().iter().map(|f| tree.items()[f.1 as usize].id).collect();
+            let mut got: Vec<u32> = scratch
+                .found()
+                .iter()
+                .map(|f| tree.items()[f.1 as usize].id)
+                .collect();
             got.sort();
             let mut all: Vec<(f32, u32)> = pts
                 .iter()
@@ -379,7 +393,10 @@ mod tests {
             assert_eq!(d2, all[0].0);
             // Any hint gives the same answer.
             for hint in [0, 17, n, 4999] {
-                assert_eq!(tree.nearest(q, f32::INFINITY, &odd, Some(hint)), Some((n, d2)));
+                assert_eq!(
+                    tree.nearest(q, f32::INFINITY, &odd, Some(hint)),
+                    Some((n, d2))
+                );
             }
             let bound = all[16].0 * 1.0001;
             let mut count = 0;
@@ -391,12 +408,23 @@ mod tests {
     #[test]
     fn build_is_deterministic_across_thread_counts() {
         let pts = points(100_000);
-        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let two = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
         let a = one.install(|| KdTree::build(pts.clone()));
         let b = two.install(|| KdTree::build(pts.clone()));
         let ids = |t: &KdTree<P>| t.items().iter().map(|p| p.id).collect::<Vec<_>>();
-        let splits = |t: &KdTree<P>| t.splits.iter().map(|s| (s.value, s.axis)).collect::<Vec<_>>();
+        let splits = |t: &KdTree<P>| {
+            t.splits
+                .iter()
+                .map(|s| (s.value, s.axis))
+                .collect::<Vec<_>>()
+        };
         assert_eq!(ids(&a), ids(&b));
         assert_eq!(splits(&a), splits(&b));
     }

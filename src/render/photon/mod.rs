@@ -7,13 +7,18 @@
 
 mod estimate;
 mod kdtree;
+mod occupancy;
 mod trace;
 
-pub use estimate::{IrradianceCache, RadianceEstimate, caustic_irradiance, irradiance_knn};
+pub use estimate::{
+    CausticLookup, IrradianceCache, RadianceEstimate, caustic_irradiance, irradiance_knn,
+};
 pub use kdtree::{KdItem, KdTree, KnnScratch};
+pub use occupancy::OccupancyGrid;
 pub use trace::{PhotonParams, PhotonStore, TraceOutput, build_photon_maps, trace_photons};
 
 use glam::Vec3A;
+use half::f16;
 
 use crate::render::math::{Rgb, decode_oct16, encode_oct16};
 
@@ -58,12 +63,17 @@ impl ClassMask {
     }
 }
 
-/// A stored photon: 32 bytes (position 12, flux 12, incoming direction 2, normal 3, flags 1).
+/// A stored photon: 24 bytes (position 12, flux 6, incoming direction 2, normal 3, flags 1).
+///
+/// Flux is stored as three f16 relative to the map's `unit` (the flux a photon carries when it
+/// leaves a light), so it is O(1) whatever the light's power or the photon count: f16's 11-bit
+/// mantissa then loses nothing that matters (0.05% per photon, rounded to nearest), and its
+/// range never under- or overflows.
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
 pub struct Photon {
     pub pos: [f32; 3],
-    pub power: [f32; 3],
+    power: [u16; 3],
     /// Unit direction toward where the photon came from (16-bit octahedral).
     wi: u16,
     /// Surface normal on the side the photon arrived from, as i8 components of length 127:
@@ -71,10 +81,9 @@ pub struct Photon {
     n: [i8; 3],
     /// Bits 0-1: PathClass; bit 2: irradiance point.
     flags: u8,
-    _pad: [u8; 2],
 }
 
-const _: () = assert!(std::mem::size_of::<Photon>() == 32);
+const _: () = assert!(std::mem::size_of::<Photon>() == 24);
 
 /// One photon path in IRRADIANCE_STRIDE is marked to carry precomputed irradiance (see
 /// [`IrradianceCache`]).
@@ -83,9 +92,10 @@ pub const IRRADIANCE_STRIDE: u64 = 4;
 const IRRADIANCE_POINT: u8 = 1 << 2;
 
 impl Photon {
+    /// `relative_power`: flux in units of the map's `unit`.
     pub fn new(
         pos: Vec3A,
-        power: Rgb,
+        relative_power: Rgb,
         wi: Vec3A,
         n_side: Vec3A,
         class: PathClass,
@@ -93,11 +103,17 @@ impl Photon {
     ) -> Photon {
         Photon {
             pos: pos.to_array(),
-            power: power.to_array(),
+            power: relative_power
+                .to_array()
+                .map(|c| f16::from_f32(c).to_bits()),
             wi: encode_oct16(wi),
             n: n_side.to_array().map(|c| (c * 127.0).round() as i8),
-            flags: class as u8 | if irradiance_point { IRRADIANCE_POINT } else { 0 },
-            _pad: [0; 2],
+            flags: class as u8
+                | if irradiance_point {
+                    IRRADIANCE_POINT
+                } else {
+                    0
+                },
         }
     }
 
@@ -107,9 +123,11 @@ impl Photon {
         self.flags & IRRADIANCE_POINT != 0
     }
 
+    /// Flux in units of the map's `unit` (see [`PhotonMap::power`]).
     #[inline]
-    pub fn power(&self) -> Rgb {
-        Rgb::from_array(self.power)
+    pub fn relative_power(&self) -> Rgb {
+        let [r, g, b] = self.power.map(|c| f16::from_bits(c).to_f32());
+        Rgb::new(r, g, b)
     }
 
     #[inline]
@@ -146,19 +164,28 @@ impl KdItem for Photon {
     }
 }
 
-/// One photon map: photons in a balanced kd-tree and the number emitted to make them
-/// (each photon already carries flux / emitted).
+/// One photon map: photons in a balanced kd-tree, the number emitted to make them, and the
+/// flux unit their stored powers are relative to (watts, luminance of a photon at emission:
+/// total light power / emitted).
 pub struct PhotonMap {
     pub tree: KdTree<Photon>,
     pub emitted: u64,
+    pub unit: f32,
 }
 
 impl PhotonMap {
-    pub fn new(photons: Vec<Photon>, emitted: u64) -> PhotonMap {
+    pub fn new(photons: Vec<Photon>, emitted: u64, unit: f32) -> PhotonMap {
         PhotonMap {
             tree: KdTree::build(photons),
             emitted,
+            unit,
         }
+    }
+
+    /// A photon's flux in watts.
+    #[inline]
+    pub fn power(&self, photon: &Photon) -> Rgb {
+        photon.relative_power() * self.unit
     }
 
     pub fn len(&self) -> usize {
@@ -178,11 +205,11 @@ impl PhotonMap {
     pub fn total_power(&self) -> [f64; 3] {
         let mut sum = [0.0f64; 3];
         for p in self.tree.items() {
-            for (s, c) in sum.iter_mut().zip(p.power) {
+            for (s, c) in sum.iter_mut().zip(p.relative_power().to_array()) {
                 *s += c as f64;
             }
         }
-        sum
+        sum.map(|s| s * self.unit as f64)
     }
 }
 

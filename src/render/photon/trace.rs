@@ -65,10 +65,11 @@ enum Target {
     Caustic,
 }
 
-/// Photons of one tracing run, in photon-index order.
+/// Photons of one tracing run, in photon-index order, with their flux unit (W).
 pub struct TraceOutput {
     pub photons: Vec<Photon>,
     pub emitted: u64,
+    pub unit: f32,
 }
 
 /// Photons per parallel work item: large enough to amortise scheduling, small enough for
@@ -121,8 +122,11 @@ fn trace(
         return Ok(TraceOutput {
             photons: Vec::new(),
             emitted,
+            unit: 1.0,
         });
     }
+    // Every photon leaves its light with luminance total / emitted: the map's flux unit.
+    let unit = picker.total / emitted as f32;
     let stream = match target {
         Target::Global(_) => Stream::GlobalPhotons,
         Target::Caustic => Stream::CausticPhotons,
@@ -138,10 +142,10 @@ fn trace(
                 let mut s = Sampler::new(seed, stream, i);
                 // Paths are picked to carry irradiance points by a hash of their index: a
                 // thinning independent of where their photons land.
-                let irradiance_point = splitmix64(i ^ splitmix64(seed)).is_multiple_of(IRRADIANCE_STRIDE);
+                let irradiance_point =
+                    splitmix64(i ^ splitmix64(seed)).is_multiple_of(IRRADIANCE_STRIDE);
                 let path = PathSetup {
                     picker: &picker,
-                    emitted,
                     target,
                     max_depth,
                     irradiance_point,
@@ -156,13 +160,16 @@ fn trace(
     for p in parts {
         photons.extend(p);
     }
-    Ok(TraceOutput { photons, emitted })
+    Ok(TraceOutput {
+        photons,
+        emitted,
+        unit,
+    })
 }
 
 /// What every photon path of one tracing run shares, and this path's irradiance-point mark.
 struct PathSetup<'a> {
     picker: &'a LightPicker,
-    emitted: u64,
     target: Target,
     max_depth: u32,
     irradiance_point: bool,
@@ -171,7 +178,6 @@ struct PathSetup<'a> {
 fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Photon>) {
     let PathSetup {
         picker,
-        emitted,
         target,
         max_depth,
         irradiance_point,
@@ -179,7 +185,8 @@ fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Pho
     let (li, p_light) = picker.pick(s.next_f32());
     let (u_pos, u_dir) = (s.next_2d(), s.next_2d());
     let em = scene.lights[li].sample_emission(u_pos, u_dir);
-    let mut power = em.flux / (p_light * emitted as f32);
+    // Flux relative to the map's unit, total / emitted: luminance 1 when it leaves the light.
+    let mut power = em.flux / (p_light * picker.total);
     let mut ray = em.ray;
     let mut non_specular_before = false;
     for depth in 0..max_depth {
@@ -284,7 +291,8 @@ pub fn build_photon_maps(
     control.check()?;
     let t1 = Instant::now();
     let tracker = control.tracker(Phase::BuildMaps, 2);
-    let make = |t: TraceOutput| (t.emitted > 0).then(|| PhotonMap::new(t.photons, t.emitted));
+    let make =
+        |t: TraceOutput| (t.emitted > 0).then(|| PhotonMap::new(t.photons, t.emitted, t.unit));
     let (global, caustic) = rayon::join(|| make(global), || make(caustic));
     tracker.finish();
     Ok(PhotonMaps {

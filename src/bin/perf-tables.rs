@@ -1,0 +1,164 @@
+//! Reproduces the seed's timing tables for its scene (1) at 512x512, 1 sample per pixel, and
+//! prints them as Markdown beside the seed's own figures (docs/performance.md).
+//!
+//!     cargo run --release --bin perf-tables [-- --runs 7]
+//!
+//! Each configuration is rendered `runs` times and the median of each phase is reported.
+//! "tracing" is photon tracing plus kd-tree building; "render" is the camera pass plus the
+//! irradiance precomputation it needs (both depend on k).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Parser;
+use photonbox::render::photon::{PhotonParams, PhotonStore, build_photon_maps};
+use photonbox::render::{Control, RenderParams, Scene, render_with_maps, trace_maps};
+
+#[derive(Parser)]
+struct Args {
+    /// Renders per configuration (the median is reported).
+    #[arg(long, default_value_t = 5)]
+    runs: usize,
+    /// The scene (default: the seed's scene 1).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+}
+
+/// The seed's measurements (seconds): (n, k, tracing, render).
+const SEED: [(u64, usize, Option<f64>, f64); 6] = [
+    (1_000, 10, Some(0.21), 11.95),
+    (10_000, 10, Some(1.59), 14.44),
+    (100_000, 10, Some(3.72), 17.70),
+    (100_000, 1, None, 8.66),
+    (100_000, 50, None, 48.26),
+    (100_000, 100, None, 84.0),
+];
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+struct Row {
+    tracing: f64,
+    trace: f64,
+    build: f64,
+    precompute: f64,
+    camera: f64,
+    global_stored: u64,
+    caustic_stored: u64,
+}
+
+fn measure(scene: &Scene, n: u64, k: usize, runs: usize) -> Row {
+    let params = RenderParams {
+        photons: n,
+        caustic_photons: n,
+        k,
+        spp: 1,
+        gather_rays: 0,
+        width: Some(512),
+        height: Some(512),
+        ..RenderParams::default()
+    };
+    let (mut tracing, mut trace, mut build, mut pre, mut cam) =
+        (vec![], vec![], vec![], vec![], vec![]);
+    let mut stored = (0, 0);
+    for _ in 0..runs {
+        let t0 = Instant::now();
+        let maps = trace_maps(scene, &params, &Control::none()).expect("not cancelled");
+        tracing.push(t0.elapsed().as_secs_f64());
+        let out = render_with_maps(scene, &maps, &params, &Control::none()).expect("not cancelled");
+        trace.push(out.stats.times.photon_trace);
+        build.push(out.stats.times.build_maps);
+        pre.push(out.stats.times.precompute);
+        cam.push(out.stats.times.render);
+        stored = (
+            out.stats.photons.global_stored,
+            out.stats.photons.caustic_stored,
+        );
+    }
+    Row {
+        tracing: median(tracing),
+        trace: median(trace),
+        build: median(build),
+        precompute: median(pre),
+        camera: median(cam),
+        global_stored: stored.0,
+        caustic_stored: stored.1,
+    }
+}
+
+fn main() {
+    let args = Args::parse();
+    let path = args.scene.unwrap_or_else(|| {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json")
+    });
+    let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let threads = rayon::current_num_threads();
+    println!(
+        "Scene {}, 512x512, 1 spp, photon store indirect, no final gathering, global and caustic maps of n \
+         emitted photons each; {threads} threads; median of {} runs.\n",
+        path.file_name().unwrap().to_string_lossy(),
+        args.runs
+    );
+    println!(
+        "| n | k | seed tracing | tracing (trace + build) | x | seed render | render (precompute + camera) | x | stored global / caustic |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for (n, k, seed_tracing, seed_render) in SEED {
+        let r = measure(&scene, n, k, args.runs);
+        let render = r.precompute + r.camera;
+        let tracing = match seed_tracing {
+            Some(s) => format!(
+                "{:.1} ms ({:.1} + {:.1}) | {:.0}x",
+                r.tracing * 1e3,
+                r.trace * 1e3,
+                r.build * 1e3,
+                s / r.tracing
+            ),
+            None => format!("{:.1} ms | -", r.tracing * 1e3),
+        };
+        println!(
+            "| {}k | {k} | {} | {tracing} | {seed_render} s | {:.1} ms ({:.1} + {:.1}) | {:.0}x | {} / {} |",
+            n / 1000,
+            seed_tracing.map_or("-".to_string(), |s| format!("{s} s")),
+            render * 1e3,
+            r.precompute * 1e3,
+            r.camera * 1e3,
+            seed_render / render,
+            r.global_stored,
+            r.caustic_stored,
+        );
+    }
+
+    // Throughput: emitted photons per second, and a 1M-photon kd-tree build.
+    println!();
+    for (label, global, caustic) in [
+        ("global map", 1_000_000u64, 0u64),
+        ("caustic map", 0, 1_000_000),
+        ("both maps", 1_000_000, 1_000_000),
+    ] {
+        let params = PhotonParams {
+            global_photons: global,
+            caustic_photons: caustic,
+            store: PhotonStore::Indirect,
+            max_depth: RenderParams::default().max_depth,
+            seed: 1,
+        };
+        let mut rates = vec![];
+        let mut builds = vec![];
+        let mut stored = 0;
+        for _ in 0..args.runs {
+            let maps = build_photon_maps(&scene, &params, &Control::none()).expect("not cancelled");
+            rates.push((global + caustic) as f64 / maps.trace_seconds);
+            builds.push(maps.build_seconds);
+            stored = maps.global.as_ref().map_or(0, |m| m.len())
+                + maps.caustic.as_ref().map_or(0, |m| m.len());
+        }
+        println!(
+            "- photon tracing, {label}: {:.2} M emitted photons/s; {stored} photons stored, kd-tree built in {:.1} ms",
+            median(rates) / 1e6,
+            median(builds) * 1e3
+        );
+    }
+}
