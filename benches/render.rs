@@ -45,6 +45,7 @@ fn camera_pass(c: &mut Criterion) {
             photons: 100_000,
             caustic_photons: 100_000,
             k,
+            gather_rays: 0,
             spp: 1,
             width: Some(512),
             height: Some(512),

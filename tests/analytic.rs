@@ -170,6 +170,7 @@ fn closed_sphere_photon_indirect_within_2_percent() {
         RenderParams {
             photons: 200_000,
             k: 100,
+            gather_rays: 0,
             spp: 1,
             ..RenderParams::default()
         },
@@ -184,6 +185,7 @@ fn closed_sphere_photon_all_within_2_percent() {
             photon_store: PhotonStore::All,
             photons: 400_000,
             k: 100,
+            gather_rays: 0,
             spp: 1,
             ..RenderParams::default()
         },
@@ -310,4 +312,23 @@ fn glass_sphere_sends_fresnel_fraction_of_power_to_floor() {
         "caustic power on the floor {got:.4} W, expected {want:.4} W ({:+.4})",
         rel(got, want)
     );
+}
+
+/// A photon carries flux (power / emitted): doubling the photon count leaves the image's
+/// brightness unchanged.
+#[test]
+fn doubling_photons_leaves_brightness_unchanged() {
+    let s = scene(&floor_scene(50.0, 0.6));
+    let mean = |photons| {
+        let params = RenderParams {
+            photon_store: PhotonStore::DirectOnly,
+            photons,
+            spp: 1,
+            ..RenderParams::default()
+        };
+        render_image(&s, &params).mean_rgb(0, 0, 64, 64)[1]
+    };
+    let (a, b) = (mean(300_000), mean(600_000));
+    eprintln!("doubling photons: {a:.5} -> {b:.5}");
+    assert!(rel(b, a).abs() < 0.02, "{a} vs {b}");
 }

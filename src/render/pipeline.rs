@@ -19,7 +19,7 @@ const GLOBAL_SEARCH_FRACTION: f32 = 0.1;
 
 /// k-NN searches in the caustic map reach at most this fraction of the scene's extent:
 /// caustics are sharp, and a tight bound keeps queries where no caustic falls cheap.
-const CAUSTIC_SEARCH_FRACTION: f32 = 0.02;
+const CAUSTIC_SEARCH_FRACTION: f32 = 0.01;
 
 /// An image and the statistics of the render that made it.
 pub struct RenderOutput {

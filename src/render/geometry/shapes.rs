@@ -20,8 +20,13 @@ pub enum Shape {
         edge_v: Vec3A,
         /// Unit normal.
         n: Vec3A,
-        /// cross(edge_u, edge_v) / |cross(edge_u, edge_v)|^2, to solve for (s, t).
-        w: Vec3A,
+        /// With w = cross(edge_u, edge_v) / |cross(edge_u, edge_v)|^2, a point corner + rel
+        /// of the plane has s = rel . cross(edge_v, w) and t = rel . cross(w, edge_u): the
+        /// scalar triple products of RTOW's quad test, folded into two precomputed vectors.
+        su: Vec3A,
+        sv: Vec3A,
+        /// n . corner: the plane's offset.
+        plane: f32,
     },
     /// Counter-clockwise seen from the side the normal points to.
     Triangle {
@@ -55,12 +60,16 @@ pub struct ShapeHit {
 impl Shape {
     pub fn quad(corner: Vec3A, edge_u: Vec3A, edge_v: Vec3A) -> Shape {
         let c = edge_u.cross(edge_v);
+        let w = c / c.length_squared();
+        let n = c.normalize();
         Shape::Quad {
             corner,
             edge_u,
             edge_v,
-            n: c.normalize(),
-            w: c / c.length_squared(),
+            n,
+            su: edge_v.cross(w),
+            sv: w.cross(edge_u),
+            plane: n.dot(corner),
         }
     }
 
@@ -90,7 +99,7 @@ impl Shape {
 
     /// The nearest hit in (0, ray.t_max), if any. `me` is this shape's id, compared against
     /// the ray's origin primitive to rule out self-intersection exactly (see module docs).
-    #[inline]
+    #[inline(always)]
     pub fn intersect(&self, ray: &Ray, me: PrimId) -> Option<ShapeHit> {
         if ray.target_prim == me {
             return None;
@@ -100,15 +109,16 @@ impl Shape {
             Shape::Sphere { center, radius } => intersect_sphere(center, radius, ray, from_me),
             Shape::Quad {
                 corner,
-                edge_u,
-                edge_v,
                 n,
-                w,
+                su,
+                sv,
+                plane,
+                ..
             } => {
                 if from_me {
                     return None;
                 }
-                intersect_quad(corner, edge_u, edge_v, n, w, ray)
+                intersect_quad(corner, n, su, sv, plane, ray)
             }
             Shape::Triangle { p0, p1, p2 } => {
                 if from_me {
@@ -185,16 +195,19 @@ fn points_bounds(pts: &[Vec3A]) -> Aabb {
 #[inline]
 fn intersect_sphere(center: Vec3A, radius: f32, ray: &Ray, from_me: bool) -> Option<ShapeHit> {
     let f = ray.o - center;
-    if from_me && ray.d.dot(f) >= 0.0 {
-        return None;
-    }
     let b = f.dot(ray.d);
-    let l = f - b * ray.d;
-    let disc = (radius - l.length()) * (radius + l.length());
-    if disc < 0.0 {
+    let r2 = radius * radius;
+    let c = f.length_squared() - r2;
+    // Leaving the sphere it starts on, or starting outside and moving away: no hit.
+    if (from_me || c > 0.0) && b >= 0.0 {
         return None;
     }
-    let c = f.length_squared() - radius * radius;
+    let l2 = (f - b * ray.d).length_squared();
+    if l2 > r2 {
+        return None;
+    }
+    let l = l2.sqrt();
+    let disc = (radius - l) * (radius + l);
     let q = -b - disc.sqrt().copysign(b);
     let (t0, t1) = if q == 0.0 {
         (0.0, 0.0)
@@ -215,23 +228,23 @@ fn intersect_sphere(center: Vec3A, radius: f32, ray: &Ray, from_me: bool) -> Opt
 #[inline]
 fn intersect_quad(
     corner: Vec3A,
-    edge_u: Vec3A,
-    edge_v: Vec3A,
     n: Vec3A,
-    w: Vec3A,
+    su: Vec3A,
+    sv: Vec3A,
+    plane: f32,
     ray: &Ray,
 ) -> Option<ShapeHit> {
     let denom = n.dot(ray.d);
     if denom == 0.0 {
         return None;
     }
-    let t = n.dot(corner - ray.o) / denom;
+    let t = (plane - n.dot(ray.o)) / denom;
     if !(t > 0.0 && t < ray.t_max) {
         return None;
     }
     let rel = ray.at(t) - corner;
-    let s = w.dot(rel.cross(edge_v));
-    let v = w.dot(edge_u.cross(rel));
+    let s = rel.dot(su);
+    let v = rel.dot(sv);
     ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&v)).then_some(ShapeHit { t, uv: [s, v] })
 }
 

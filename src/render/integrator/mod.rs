@@ -77,7 +77,7 @@ impl Default for RenderParams {
             caustic_photons: 200_000,
             k: 50,
             photon_store: PhotonStore::Indirect,
-            gather_rays: 0,
+            gather_rays: 8,
             spp: 4,
             max_depth: 32,
             seed: 1,

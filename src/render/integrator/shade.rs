@@ -10,12 +10,11 @@ use crate::render::photon::{CausticLookup, IrradianceCache, KnnScratch};
 use crate::render::sampling::{Sampler, cosine_hemisphere, power_cosine};
 use crate::render::scene::Scene;
 
-/// Camera paths split into both branches at glass (Whitted 1980) up to this many specular
-/// bounces, when both branches carry at least SPLIT_MIN_WEIGHT; otherwise, and on gather
-/// and glossy rays, one branch is chosen at random in proportion to its weight (unbiased,
-/// and it spares tracing a 4% reflection as carefully as the 96% it rides on).
-const SPLIT_DEPTH: u32 = 3;
-const SPLIT_MIN_WEIGHT: f32 = 0.15;
+/// Camera paths split into both branches at glass (Whitted 1980) for their first
+/// SPLIT_DEPTH specular bounces: the reflection on a glass surface and what is seen through
+/// it are both smooth. Deeper, and on gather and glossy rays, one branch is chosen at random
+/// in proportion to its weight (unbiased, and cheap where it matters less).
+const SPLIT_DEPTH: u32 = 2;
 
 /// Read-only state of a camera pass, shared by all threads.
 pub struct Shader<'a> {
@@ -100,13 +99,7 @@ impl Shader<'_> {
         // Split only on the camera's own specular chain; gather and glossy rays pick one branch.
         let split = depth < SPLIT_DEPTH && std::ptr::eq(vertex, &self.plan.primary);
         match (b.reflection, b.transmission) {
-            (Some(r), Some(t))
-                if split
-                    && luminance(r.weight) >= SPLIT_MIN_WEIGHT
-                    && luminance(t.weight) >= SPLIT_MIN_WEIGHT =>
-            {
-                follow(r, 1.0, s) + follow(t, 1.0, s)
-            }
+            (Some(r), Some(t)) if split => follow(r, 1.0, s) + follow(t, 1.0, s),
             (Some(r), Some(t)) => {
                 let (lr, lt) = (luminance(r.weight), luminance(t.weight));
                 let pr = lr / (lr + lt);

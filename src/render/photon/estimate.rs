@@ -250,7 +250,7 @@ impl IrradianceCache {
 
     /// Irradiance of `classes` at the nearest point on a surface facing like `n_side`; zero
     /// if none is within the search bound. `hint` carries the last answer between calls
-    /// (nearby queries mostly share their nearest point; see [`KdTree::nearest`]).
+    /// (neighbouring pixels mostly share their nearest point; see [`KdTree::nearest`]).
     #[inline]
     pub fn lookup(
         &self,
