@@ -84,6 +84,31 @@ impl Frame {
     }
 }
 
+/// sin and cos of `theta` (|theta| up to about one turn) to about 3e-7: a quadrant reduction
+/// and Taylor polynomials on [-pi/4, pi/4]. Sampling calls this once or twice per bounce,
+/// and libm's `sincosf` was 8% of photon tracing.
+#[inline]
+pub fn sin_cos(theta: f32) -> (f32, f32) {
+    use std::f32::consts::{FRAC_2_PI, FRAC_PI_2};
+    let k = (theta * FRAC_2_PI + 0.5f32.copysign(theta)) as i32;
+    let r = theta - k as f32 * FRAC_PI_2;
+    let r2 = r * r;
+    let s = r * (1.0 + r2 * (-1.0 / 6.0 + r2 * (1.0 / 120.0 + r2 * (-1.0 / 5040.0))));
+    let c = 1.0 + r2 * (-0.5 + r2 * (1.0 / 24.0 + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40320.0))));
+    match k & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+/// Round half away from zero by truncation (no libm call on baseline x86-64).
+#[inline]
+pub fn round_to_i32(x: f32) -> i32 {
+    (x + 0.5f32.copysign(x)) as i32
+}
+
 /// Mirror reflection of `wo` about the unit normal `n` (both pointing away from the surface).
 #[inline]
 pub fn reflect(wo: Vec3A, n: Vec3A) -> Vec3A {
@@ -106,7 +131,7 @@ pub fn encode_oct16(v: Vec3A) -> u16 {
         x = (1.0 - oy.abs()) * sign_nz(ox);
         y = (1.0 - ox.abs()) * sign_nz(oy);
     }
-    let q = |c: f32| (((c.clamp(-1.0, 1.0) * 0.5 + 0.5) * 255.0).round() as u16) & 0xff;
+    let q = |c: f32| (round_to_i32((c.clamp(-1.0, 1.0) * 0.5 + 0.5) * 255.0) as u16) & 0xff;
     q(x) | (q(y) << 8)
 }
 
@@ -161,6 +186,18 @@ mod tests {
             worst = worst.min(decode_oct16(encode_oct16(v)).dot(v));
         }
         assert!(worst > 0.999, "worst cosine {worst}");
+    }
+
+    #[test]
+    fn fast_sin_cos_is_accurate_over_a_turn_each_way() {
+        for i in -10_000..=10_000 {
+            let t = i as f32 * 0.000_7;
+            let (s, c) = sin_cos(t);
+            assert!(
+                (s - t.sin()).abs() < 5e-7 && (c - t.cos()).abs() < 5e-7,
+                "{t}"
+            );
+        }
     }
 
     #[test]

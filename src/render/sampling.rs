@@ -7,6 +7,8 @@
 use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
 use glam::{Vec2, Vec3A};
+
+use crate::render::math::sin_cos;
 use rand::Rng;
 use rand_pcg::Pcg64Mcg;
 
@@ -62,8 +64,8 @@ pub fn splitmix64(mut z: u64) -> u64 {
 pub fn uniform_sphere(u: Vec2) -> Vec3A {
     let z = 1.0 - 2.0 * u.x;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let phi = TAU * u.y;
-    Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+    let (sin_phi, cos_phi) = sin_cos(TAU * u.y);
+    Vec3A::new(r * cos_phi, r * sin_phi, z)
 }
 
 pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
@@ -83,7 +85,8 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
             std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
         )
     };
-    r * Vec2::new(theta.cos(), theta.sin())
+    let (sin_t, cos_t) = sin_cos(theta);
+    r * Vec2::new(cos_t, sin_t)
 }
 
 /// Cosine-weighted direction in the local hemisphere around +z (Malley's method);
@@ -108,8 +111,8 @@ pub fn uniform_cone(u: Vec2, one_minus_cos_max: f32) -> Vec3A {
     let one_minus_cos = u.x * one_minus_cos_max;
     let cos_theta = 1.0 - one_minus_cos;
     let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
-    let phi = TAU * u.y;
-    Vec3A::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+    let (sin_phi, cos_phi) = sin_cos(TAU * u.y);
+    Vec3A::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
 }
 
 /// Direction around +z distributed as cos^exponent (the modified-Phong lobe, Lafortune and
@@ -118,8 +121,8 @@ pub fn uniform_cone(u: Vec2, one_minus_cos_max: f32) -> Vec3A {
 pub fn power_cosine(u: Vec2, exponent: f32) -> Vec3A {
     let cos_theta = u.x.powf(1.0 / (exponent + 1.0));
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let phi = TAU * u.y;
-    Vec3A::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
+    let (sin_phi, cos_phi) = sin_cos(TAU * u.y);
+    Vec3A::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
 }
 
 #[inline]

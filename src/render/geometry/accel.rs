@@ -13,6 +13,7 @@ use obvhs::{
     ray::{Ray as BvhRay, RayHit},
 };
 
+use super::flat::Flat;
 use super::{Hit, Primitive, Ray, shapes::ShapeHit};
 
 impl Boundable for Primitive {
@@ -30,13 +31,19 @@ const FLAT_MAX: usize = 16;
 /// index is the primitive's id (no BVH for tiny scenes).
 pub struct Accel {
     bvh: Option<CwBvh>,
+    flat: Option<Flat>,
     prims: Vec<Primitive>,
 }
 
 impl Accel {
     pub fn build(prims: Vec<Primitive>) -> Accel {
         if prims.len() <= FLAT_MAX {
-            return Accel { bvh: None, prims };
+            let shapes: Vec<_> = prims.iter().map(|p| p.shape).collect();
+            return Accel {
+                bvh: None,
+                flat: Some(Flat::new(&shapes)),
+                prims,
+            };
         }
         let mut build_time = Duration::ZERO;
         let mut bvh = build_cwbvh(&prims, BvhBuildParams::medium_build(), &mut build_time);
@@ -51,6 +58,7 @@ impl Accel {
         }
         Accel {
             bvh: Some(bvh),
+            flat: None,
             prims: ordered,
         }
     }
@@ -84,17 +92,9 @@ impl Accel {
         Some(Hit { t: h.t, point })
     }
 
-    /// Closest hit by testing every primitive (ties: the lowest id).
+    /// Closest hit by testing every primitive, four at a time.
     fn intersect_flat(&self, ray: &Ray) -> Option<Hit> {
-        let mut probe = *ray;
-        let mut best: Option<(u32, ShapeHit)> = None;
-        for (id, prim) in self.prims.iter().enumerate() {
-            if let Some(h) = prim.shape.intersect(&probe, id as u32) {
-                probe.t_max = h.t;
-                best = Some((id as u32, h));
-            }
-        }
-        let (id, h) = best?;
+        let (id, h) = self.flat.as_ref()?.intersect(ray)?;
         let point = self.prims[id as usize].shape.surface_point(ray, &h, id);
         Some(Hit { t: h.t, point })
     }
@@ -103,10 +103,9 @@ impl Accel {
     pub fn occluded(&self, ray: &Ray) -> bool {
         let Some(bvh) = self.bvh.as_ref() else {
             return self
-                .prims
-                .iter()
-                .enumerate()
-                .any(|(id, p)| p.shape.intersect(ray, id as u32).is_some());
+                .flat
+                .as_ref()
+                .is_some_and(|f| f.intersect(ray).is_some());
         };
         let bray = BvhRay::new(ray.o, ray.d, 0.0, ray.t_max);
         !bvh.ray_traverse_miss(bray, |_, id| {

@@ -9,6 +9,7 @@
 //! invariant under scaling and translation.
 
 mod accel;
+mod flat;
 mod shapes;
 
 pub use accel::Accel;

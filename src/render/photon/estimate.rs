@@ -21,6 +21,10 @@ use crate::render::math::Rgb;
 /// Minimum cosine between a photon's surface normal and the query's.
 const NORMAL_COS: f32 = 0.8;
 
+/// Fixed-point scale for order-independent sums of relative photon powers (which are O(1);
+/// 2^32 leaves room for 10^8 photons of power 10 in an i64).
+const FIXED_ONE: f32 = 4_294_967_296.0;
+
 /// An irradiance estimate and the search that made it.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RadianceEstimate {
@@ -72,14 +76,20 @@ pub fn irradiance_knn(
             ..Default::default()
         };
     }
+    // Summed in 32.32 fixed point: integer addition is associative, so the result does not
+    // depend on the order the search found the photons in (which depends on the thread's
+    // radius guess), and images stay bit-identical across thread counts.
     let items = map.tree.items();
-    let mut by_class = [Rgb::ZERO; 3];
+    let mut sums = [[0i64; 3]; 3];
     for &(_, i) in inner {
         let ph = &items[i as usize];
-        by_class[ph.class() as usize] += ph.relative_power();
+        let sum = &mut sums[ph.class() as usize];
+        for (acc, c) in sum.iter_mut().zip(ph.relative_power().to_array()) {
+            *acc += (c * FIXED_ONE) as i64;
+        }
     }
-    let scale = map.unit / (std::f32::consts::PI * r2);
-    let by_class = by_class.map(|c| c * scale);
+    let scale = map.unit as f64 / (FIXED_ONE as f64 * std::f64::consts::PI * r2 as f64);
+    let by_class = sums.map(|c| Rgb::from_array(c.map(|x| (x as f64 * scale) as f32)));
     RadianceEstimate {
         irradiance: by_class[0] + by_class[1] + by_class[2],
         by_class,

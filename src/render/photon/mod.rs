@@ -18,9 +18,8 @@ pub use occupancy::OccupancyGrid;
 pub use trace::{PhotonParams, PhotonStore, TraceOutput, build_photon_maps, trace_photons};
 
 use glam::Vec3A;
-use half::f16;
 
-use crate::render::math::{Rgb, decode_oct16, encode_oct16};
+use crate::render::math::{Rgb, round_to_i32};
 
 /// How a photon reached the surface it is stored on; estimates pick classes so that no
 /// light path is counted twice (see `integrator`).
@@ -63,19 +62,19 @@ impl ClassMask {
     }
 }
 
-/// A stored photon: 24 bytes (position 12, flux 6, incoming direction 2, normal 3, flags 1).
+/// A stored photon: 28 bytes (position 12, flux 12, normal 3, flags 1).
 ///
-/// Flux is stored as three f16 relative to the map's `unit` (the flux a photon carries when it
-/// leaves a light), so it is O(1) whatever the light's power or the photon count: f16's 11-bit
-/// mantissa then loses nothing that matters (0.05% per photon, rounded to nearest), and its
-/// range never under- or overflows.
+/// Flux is stored relative to the map's `unit` (the flux a photon carries when it leaves a
+/// light), so it is O(1) whatever the light's power or the photon count. There is no
+/// incoming direction: the maps are only ever read through the Lambertian part of a BSDF
+/// (glossy and specular reflection are ray traced), which does not depend on it. (A 24-byte
+/// layout with f16 flux and a 16-bit direction was measured: its conversions cost 6% of
+/// photon tracing and more in every estimate.)
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
 pub struct Photon {
     pub pos: [f32; 3],
-    power: [u16; 3],
-    /// Unit direction toward where the photon came from (16-bit octahedral).
-    wi: u16,
+    power: [f32; 3],
     /// Surface normal on the side the photon arrived from, as i8 components of length 127:
     /// the side test of every candidate photon is then three multiply-adds.
     n: [i8; 3],
@@ -83,7 +82,7 @@ pub struct Photon {
     flags: u8,
 }
 
-const _: () = assert!(std::mem::size_of::<Photon>() == 24);
+const _: () = assert!(std::mem::size_of::<Photon>() == 28);
 
 /// One photon path in IRRADIANCE_STRIDE is marked to carry precomputed irradiance (see
 /// [`IrradianceCache`]).
@@ -96,18 +95,14 @@ impl Photon {
     pub fn new(
         pos: Vec3A,
         relative_power: Rgb,
-        wi: Vec3A,
         n_side: Vec3A,
         class: PathClass,
         irradiance_point: bool,
     ) -> Photon {
         Photon {
             pos: pos.to_array(),
-            power: relative_power
-                .to_array()
-                .map(|c| f16::from_f32(c).to_bits()),
-            wi: encode_oct16(wi),
-            n: n_side.to_array().map(|c| (c * 127.0).round() as i8),
+            power: relative_power.to_array(),
+            n: n_side.to_array().map(|c| round_to_i32(c * 127.0) as i8),
             flags: class as u8
                 | if irradiance_point {
                     IRRADIANCE_POINT
@@ -126,13 +121,7 @@ impl Photon {
     /// Flux in units of the map's `unit` (see [`PhotonMap::power`]).
     #[inline]
     pub fn relative_power(&self) -> Rgb {
-        let [r, g, b] = self.power.map(|c| f16::from_bits(c).to_f32());
-        Rgb::new(r, g, b)
-    }
-
-    #[inline]
-    pub fn wi(&self) -> Vec3A {
-        decode_oct16(self.wi)
+        Rgb::from_array(self.power)
     }
 
     /// The stored normal's i8 components (length 127).

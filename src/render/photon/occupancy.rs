@@ -107,7 +107,7 @@ mod tests {
         let photons: Vec<Photon> = (0..2000)
             .map(|_| {
                 let p = Vec3A::new(s.next_f32() * 0.3, 0.0, s.next_f32() * 0.3);
-                Photon::new(p, Vec3A::ONE, Vec3A::Y, Vec3A::Y, PathClass::Caustic, false)
+                Photon::new(p, Vec3A::ONE, Vec3A::Y, PathClass::Caustic, false)
             })
             .collect();
         let map = PhotonMap::new(photons, 2000, 1.0);

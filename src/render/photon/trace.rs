@@ -216,7 +216,6 @@ fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Pho
                 out.push(Photon::new(
                     hit.point.p,
                     power,
-                    wo,
                     n_side,
                     class,
                     irradiance_point,
