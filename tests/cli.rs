@@ -246,6 +246,67 @@ fn negative_radius_and_degenerate_geometry() {
 }
 
 #[test]
+fn energy_creating_colours_huge_numbers_and_images_are_refused() {
+    expect_bad_scene(
+        &format!(
+            r#"{{{CAMERA}, "materials": {{"w": {{"type": "diffuse", "albedo": [200, 30, 30]}}}}, "objects": [], {LIGHTS}}}"#
+        ),
+        &[],
+        &["materials.w.albedo", "at most 1", "255"],
+    );
+    expect_bad_scene(
+        &format!(
+            r#"{{{CAMERA}, "materials": {{"m": {{"type": "mirror", "reflectance": [1.2, 1, 1]}}}}, "objects": [], {LIGHTS}}}"#
+        ),
+        &[],
+        &["materials.m.reflectance"],
+    );
+    expect_bad_scene(
+        &with_objects(
+            r#"{"type": "sphere", "material": "white", "center": [1e20, 0, 0], "radius": 1}"#,
+        ),
+        &[],
+        &["objects[0].center", "magnitude"],
+    );
+    expect_bad_scene(
+        &format!(
+            r#"{{"camera": {{"position": [0,1,4], "look_at": [0,1,0], "up": [0,1,0], "fov": 40, "width": 100000, "height": 8}}, {MATS}, "objects": [], {LIGHTS}}}"#
+        ),
+        &[],
+        &["camera.width", "16384"],
+    );
+}
+
+/// An OBJ file's material library is never opened (it could name any file, or a device
+/// that never ends).
+#[test]
+fn obj_material_libraries_are_not_opened() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("tri.obj"),
+        "mtllib /dev/zero\nmtllib ../../../etc/passwd\nv -1 0 -1\nv 1 0 -1\nv 0 0 1\nf 1 3 2\n",
+    )
+    .unwrap();
+    let scene = dir.path().join("s.json");
+    std::fs::write(
+        &scene,
+        with_objects(r#"{"type": "mesh", "material": "white", "obj": "tri.obj"}"#),
+    )
+    .unwrap();
+    let png = dir.path().join("o.png");
+    let o = run(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--photons",
+        "1000",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(png.exists());
+}
+
+#[test]
 fn unknown_material_names_its_path() {
     expect_bad_scene(
         &with_objects(

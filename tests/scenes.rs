@@ -1,6 +1,8 @@
 //! Every built-in scene parses and renders a finite, non-black image; the mesh scene has
 //! at least 100k triangles (issue 2: scenes/).
 
+mod common;
+
 use std::path::Path;
 
 use photonbox::render::{Control, RenderParams, Scene, render};
@@ -66,4 +68,42 @@ fn the_mesh_scene_has_at_least_100k_triangles() {
         "{} triangles",
         scene.triangle_count
     );
+}
+
+/// Regression (a review found it): the caustic occupancy grid indexed out of bounds for some
+/// scales of the seed's scene (1). The image must not depend on scale or position.
+#[test]
+fn scene_one_scaled_and_moved_renders_the_same() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json");
+    let text = std::fs::read_to_string(path).unwrap();
+    let params = RenderParams {
+        photons: 50_000,
+        caustic_photons: 50_000,
+        gather_rays: 0,
+        spp: 2,
+        width: Some(48),
+        height: Some(48),
+        ..RenderParams::default()
+    };
+    let mean = |json: &str| {
+        let scene = Scene::parse(json, None).unwrap();
+        let img = render(&scene, &params, &Control::none()).unwrap().image;
+        img.mean_rgb(0, 0, 48, 48)
+    };
+    let base = mean(&text);
+    for (s, t) in [
+        (5.0, [0.0; 3]),
+        (1e-3, [0.0; 3]),
+        (1e4, [0.0; 3]),
+        (1.0, [1e5, -3e4, 2e5]),
+    ] {
+        let m = mean(&common::transform_scene(&text, s, t));
+        for c in 0..3 {
+            let r = m[c] / base[c] - 1.0;
+            assert!(
+                r.abs() < 0.01,
+                "scale {s} shift {t:?}: channel {c} off by {r:+.4}"
+            );
+        }
+    }
 }

@@ -5,6 +5,9 @@ use glam::Vec3A;
 
 use crate::render::geometry::Ray;
 
+/// The largest image side, from a scene or a render's parameters.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
 #[derive(Clone, Debug)]
 pub struct Camera {
     pub position: Vec3A,

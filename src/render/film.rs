@@ -29,7 +29,7 @@ impl Image {
 
     #[inline]
     pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
-        self.pixels[(y * self.width + x) as usize]
+        self.pixels[y as usize * self.width as usize + x as usize]
     }
 
     /// Mean of each channel over a rectangle [x0, x1) x [y0, y1), in f64.
@@ -123,7 +123,7 @@ pub fn render_film(
         let tw = (x1 - x0) as usize;
         for (i, px) in tile.into_iter().enumerate() {
             let (dx, dy) = ((i % tw) as u32, (i / tw) as u32);
-            image.pixels[((y0 + dy) * w + x0 + dx) as usize] = px;
+            image.pixels[(y0 + dy) as usize * w as usize + (x0 + dx) as usize] = px;
         }
     }
     Ok(FilmOutput {

@@ -91,8 +91,7 @@ pub struct SpecularBranch {
     pub weight: Rgb,
 }
 
-/// The (at most two) branches of a specular interaction, with the probability a sampler
-/// would pick the first (reflection) one.
+/// The (at most two) branches of a specular interaction.
 #[derive(Clone, Copy, Debug)]
 pub struct SpecularBranches {
     pub reflection: Option<SpecularBranch>,

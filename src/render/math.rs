@@ -1,5 +1,5 @@
 //! Small numeric helpers shared by the whole engine: colours, floating-point error bounds,
-//! orthonormal frames and compact direction encodings.
+//! orthonormal frames, a fast sin/cos.
 
 use glam::Vec3A;
 
@@ -77,11 +77,6 @@ impl Frame {
     pub fn to_world(&self, v: Vec3A) -> Vec3A {
         self.s * v.x + self.t * v.y + self.n * v.z
     }
-
-    #[inline]
-    pub fn to_local(&self, v: Vec3A) -> Vec3A {
-        Vec3A::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
-    }
 }
 
 /// sin and cos of `theta` (|theta| up to about one turn) to about 3e-7: a quadrant reduction
@@ -115,45 +110,6 @@ pub fn reflect(wo: Vec3A, n: Vec3A) -> Vec3A {
     2.0 * wo.dot(n) * n - wo
 }
 
-/// Encode a unit vector in 16 bits with the octahedral map (Cigolle et al. 2014, "A Survey of
-/// Efficient Representations for Independent Unit Vectors", JCGT 3(2)); max error about 1.3 degrees,
-/// enough for the side and orientation tests made on stored photons.
-#[inline]
-pub fn encode_oct16(v: Vec3A) -> u16 {
-    let l1 = v.x.abs() + v.y.abs() + v.z.abs();
-    let (mut x, mut y) = if l1 > 0.0 {
-        (v.x / l1, v.y / l1)
-    } else {
-        (0.0, 0.0)
-    };
-    if v.z < 0.0 {
-        let (ox, oy) = (x, y);
-        x = (1.0 - oy.abs()) * sign_nz(ox);
-        y = (1.0 - ox.abs()) * sign_nz(oy);
-    }
-    let q = |c: f32| (round_to_i32((c.clamp(-1.0, 1.0) * 0.5 + 0.5) * 255.0) as u16) & 0xff;
-    q(x) | (q(y) << 8)
-}
-
-/// Inverse of [`encode_oct16`]; returns a unit vector.
-#[inline]
-pub fn decode_oct16(code: u16) -> Vec3A {
-    let x = (code & 0xff) as f32 / 255.0 * 2.0 - 1.0;
-    let y = (code >> 8) as f32 / 255.0 * 2.0 - 1.0;
-    let z = 1.0 - x.abs() - y.abs();
-    let (x, y) = if z < 0.0 {
-        ((1.0 - y.abs()) * sign_nz(x), (1.0 - x.abs()) * sign_nz(y))
-    } else {
-        (x, y)
-    };
-    Vec3A::new(x, y, z).normalize()
-}
-
-#[inline]
-fn sign_nz(v: f32) -> f32 {
-    if v >= 0.0 { 1.0 } else { -1.0 }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -171,21 +127,10 @@ mod tests {
                 f.s.dot(f.t).abs() < 1e-5 && f.s.dot(n).abs() < 1e-5 && f.t.dot(n).abs() < 1e-5
             );
             let v = Vec3A::new(0.3, -0.5, 0.81);
-            assert!((f.to_local(f.to_world(v)) - v).length() < 1e-5);
+            let w = f.to_world(v);
+            let back = Vec3A::new(w.dot(f.s), w.dot(f.t), w.dot(f.n));
+            assert!((back - v).length() < 1e-5);
         }
-    }
-
-    #[test]
-    fn oct16_roundtrip_error_is_small() {
-        let mut worst: f32 = 1.0;
-        for i in 0..5000 {
-            let a = i as f32 * 0.618_034 * std::f32::consts::TAU;
-            let z = 1.0 - 2.0 * (i as f32 + 0.5) / 5000.0;
-            let r = (1.0 - z * z).sqrt();
-            let v = Vec3A::new(r * a.cos(), r * a.sin(), z);
-            worst = worst.min(decode_oct16(encode_oct16(v)).dot(v));
-        }
-        assert!(worst > 0.999, "worst cosine {worst}");
     }
 
     #[test]

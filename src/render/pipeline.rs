@@ -4,12 +4,13 @@
 
 use std::time::Instant;
 
+use crate::render::camera::Camera;
 use crate::render::control::{Cancelled, Control};
 use crate::render::effects::analyse;
 use crate::render::film::{Image, render_film};
 use crate::render::integrator::{RenderParams, Shader};
 use crate::render::photon::{
-    CausticLookup, IrradianceCache, Photon, PhotonMaps, build_photon_maps,
+    CausticLookup, IrradianceCache, Photon, PhotonMap, PhotonMaps, build_photon_maps,
 };
 use crate::render::scene::Scene;
 use crate::render::stats::{ParamsEcho, PhotonCounts, Radius, RenderStats, Times};
@@ -56,6 +57,10 @@ pub fn render_with_maps(
     control: &Control,
 ) -> Result<RenderOutput, Cancelled> {
     let analysis = analyse(scene, params);
+    assert_eq!(
+        maps.params, analysis.photon_params,
+        "photon maps traced for other photon parameters than these render parameters imply"
+    );
     let plan = analysis.plan;
     let extent = scene.extent().max(f32::MIN_POSITIVE);
     let global_max = GLOBAL_SEARCH_FRACTION * extent;
@@ -94,13 +99,49 @@ pub fn render_with_maps(
     let film = render_film(&shader, &camera, params.spp, params.seed, control)?;
     let render = t_render.elapsed().as_secs_f64();
 
-    let count = |m: &Option<crate::render::photon::PhotonMap>| {
-        m.as_ref().map_or((0, 0), |m| (m.emitted, m.len() as u64))
-    };
+    let stats = collect_stats(&StatsInput {
+        scene,
+        maps,
+        params,
+        camera: &camera,
+        cache: cache.as_ref(),
+        radii: (caustic_max, global_max),
+        times: (precompute, render),
+        nonfinite_samples: film.nonfinite_samples,
+        effects: analysis.effects,
+    });
+    Ok(RenderOutput {
+        image: film.image,
+        stats,
+    })
+}
+
+/// What `collect_stats` reports on.
+struct StatsInput<'a> {
+    scene: &'a Scene,
+    maps: &'a PhotonMaps,
+    params: &'a RenderParams,
+    camera: &'a Camera,
+    cache: Option<&'a IrradianceCache>,
+    /// Caustic and global search bounds.
+    radii: (f32, f32),
+    /// Precompute and camera-pass seconds.
+    times: (f64, f64),
+    nonfinite_samples: u64,
+    effects: std::collections::BTreeMap<String, crate::render::stats::Effect>,
+}
+
+/// STATS.json for one render.
+fn collect_stats(s: &StatsInput) -> RenderStats {
+    let (maps, params) = (s.maps, s.params);
+    let count = |m: &Option<PhotonMap>| m.as_ref().map_or((0, 0), |m| (m.emitted, m.len() as u64));
     let (global_emitted, global_stored) = count(&maps.global);
     let (caustic_emitted, caustic_stored) = count(&maps.caustic);
-    let stats = RenderStats {
-        scene: scene.name.clone(),
+    let stored = global_stored + caustic_stored;
+    let (precompute, render) = s.times;
+    let (caustic_max, global_max) = s.radii;
+    RenderStats {
+        scene: s.scene.name.clone(),
         params: ParamsEcho {
             integrator: params.integrator.name().into(),
             photons: params.photons,
@@ -111,8 +152,8 @@ pub fn render_with_maps(
             spp: params.spp,
             max_depth: params.max_depth,
             seed: params.seed,
-            width: camera.width,
-            height: camera.height,
+            width: s.camera.width,
+            height: s.camera.height,
         },
         times: Times {
             photon_trace: maps.trace_seconds,
@@ -127,32 +168,28 @@ pub fn render_with_maps(
             caustic_emitted,
             caustic_stored,
             map_bytes: maps.bytes() as u64,
-            bytes_per_photon: if global_stored + caustic_stored > 0 {
-                maps.bytes() as f64 / (global_stored + caustic_stored) as f64
+            bytes_per_photon: if stored > 0 {
+                maps.bytes() as f64 / stored as f64
             } else {
                 std::mem::size_of::<Photon>() as f64
             },
-            irradiance_points: cache.as_ref().map_or(0, |c| c.len() as u64),
+            irradiance_points: s.cache.map_or(0, |c| c.len() as u64),
         },
-        effects: analysis.effects,
+        effects: s.effects.clone(),
         radius: Radius {
             caustic_max: if maps.caustic.is_some() {
                 caustic_max as f64
             } else {
                 0.0
             },
-            global_rms: cache.as_ref().map_or(0.0, |c| c.mean_r2.sqrt()),
-            global_max: if cache.is_some() {
+            global_rms: s.cache.map_or(0.0, |c| c.mean_r2.sqrt()),
+            global_max: if s.cache.is_some() {
                 global_max as f64
             } else {
                 0.0
             },
         },
-        nonfinite_samples: film.nonfinite_samples,
+        nonfinite_samples: s.nonfinite_samples,
         threads: rayon::current_num_threads(),
-    };
-    Ok(RenderOutput {
-        image: film.image,
-        stats,
-    })
+    }
 }

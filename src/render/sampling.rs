@@ -4,7 +4,7 @@
 //! (seed, camera, pixel * spp + sample) or (seed, global photons, photon index), so an image
 //! never depends on how work was split between threads (pbrt-v4 section 8.3).
 
-use std::f32::consts::{FRAC_1_PI, PI, TAU};
+use std::f32::consts::{FRAC_1_PI, TAU};
 
 use glam::{Vec2, Vec3A};
 
@@ -19,7 +19,6 @@ pub enum Stream {
     Camera = 1,
     GlobalPhotons = 2,
     CausticPhotons = 3,
-    RadianceSubset = 4,
 }
 
 /// A small, fast generator (PCG 128-bit MCG, O'Neill 2014) seeded from a hash of
@@ -67,8 +66,6 @@ pub fn uniform_sphere(u: Vec2) -> Vec3A {
     let (sin_phi, cos_phi) = sin_cos(TAU * u.y);
     Vec3A::new(r * cos_phi, r * sin_phi, z)
 }
-
-pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
 
 /// Shirley-Chiu concentric map from the square to the unit disk (area preserving).
 #[inline]
@@ -134,19 +131,6 @@ pub fn power_cosine_pdf(cos_theta: f32, exponent: f32) -> f32 {
     }
 }
 
-/// Uniform point in the triangle (0,0),(1,0),(0,1) as barycentrics (b1, b2) (Heitz 2019,
-/// "A Low-Distortion Map Between Triangle and Square").
-#[inline]
-pub fn uniform_triangle(u: Vec2) -> Vec2 {
-    if u.y > u.x {
-        let b0 = u.x / 2.0;
-        Vec2::new(b0, u.y - b0)
-    } else {
-        let b1 = u.y / 2.0;
-        Vec2::new(u.x - b1, b1)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -179,8 +163,6 @@ mod tests {
             assert!(k.z >= 0.99 - 1e-6);
             let p = power_cosine(u, 20.0);
             assert!(p.z >= 0.0 && (p.length() - 1.0).abs() < 1e-4);
-            let t = uniform_triangle(u);
-            assert!(t.x >= 0.0 && t.y >= 0.0 && t.x + t.y <= 1.0 + 1e-6);
         }
     }
 }

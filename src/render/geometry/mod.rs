@@ -23,8 +23,8 @@ use crate::render::math::{next_float_down, next_float_up};
 pub type PrimId = u32;
 pub const NO_PRIM: PrimId = u32::MAX;
 
-/// A ray with unit direction. `skip` primitives are ignored by intersection: the origin's own
-/// primitive (see the module docs) and, for shadow rays, the light's surface being aimed at.
+/// A ray with unit direction. Intersection ignores `target_prim` (a shadow ray's light) and
+/// treats `origin_prim` as the convex primitive the ray leaves (see the module docs).
 #[derive(Clone, Copy, Debug)]
 pub struct Ray {
     pub o: Vec3A,

@@ -5,22 +5,22 @@
 //! and specular reflection, ray traced). Every light path L (S|D)* D(x) falls in exactly one
 //! term, by the path class of the photons that carry it:
 //!
-//! | mode (`--photon-store`, gather G) | direct at x     | caustics at x | indirect at x                                   |
-//! |-----------------------------------|-----------------|---------------|-------------------------------------------------|
-//! | raytrace                          | shadow rays     | -             | -                                               |
-//! | photon indirect, G = 0            | shadow rays     | caustic map   | global map, class Indirect                      |
-//! | photon indirect, G > 0            | shadow rays     | caustic map   | gather; at y: shadow rays + global Caustic, Indirect |
-//! | photon all, G = 0                 | global Direct   | caustic map   | global map, class Indirect                      |
-//! | photon all, G > 0                 | global Direct   | caustic map   | gather; at y: global map, all classes           |
+//! | mode (`--photon-store`, gather G) | direct at x   | caustics at x | indirect at x                                        |
+//! |-----------------------------------|---------------|---------------|------------------------------------------------------|
+//! | raytrace                          | shadow rays   | -             | -                                                    |
+//! | photon indirect, G = 0            | shadow rays   | caustic map   | global map, class Indirect                           |
+//! | photon indirect, G > 0            | shadow rays   | caustic map   | gather; at y: shadow rays + global Caustic, Indirect |
+//! | photon all, G = 0                 | global Direct | caustic map   | global map, class Indirect                           |
+//! | photon all, G > 0                 | global Direct | caustic map   | gather; at y: global map, all classes                |
+//! | photon direct_only                | global Direct | -             | -                                                    |
 //!
-//! (In `all` mode the global map holds every class; a gather hit y reads Direct, Caustic
-//! and Indirect from it.) Secondary vertices, reached from x along a Phong glossy lobe, are
-//! shaded like the G = 0 row: final gathering happens once per camera path.
-//! | photon direct_only                | global Direct   | -             | -                                               |
-//!
-//! Gather rays and glossy rays never count emission they hit when shadow rays already
-//! account for it, and gather rays never count it at all (a light seen through a specular
-//! chain from x is a caustic, in the caustic map).
+//! Maps are read through the Lambertian part of a BSDF (rho/pi); a Phong surface's glossy
+//! lobe is ray traced instead, at x and at gather hits y, by one ray whose end is shaded like
+//! the G = 0 rows (final gathering happens once per camera path). Emission reached by a ray
+//! counts only where nothing else accounts for it: always on camera paths; for glossy rays
+//! only through a mirror or glass when shadow rays sampled the light directly; never for
+//! gather rays (a light seen from x, even through specular surfaces, is direct light or a
+//! caustic).
 
 mod shade;
 
@@ -67,6 +67,60 @@ pub struct RenderParams {
     /// Resolution override (else the scene's camera).
     pub width: Option<u32>,
     pub height: Option<u32>,
+}
+
+/// A render parameter out of range: the field (snake_case, as the server's JSON names it;
+/// the CLI flag is `--` and the name with dashes) and what is wrong.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{field}: {message}")]
+pub struct ParamError {
+    pub field: &'static str,
+    pub message: String,
+}
+
+/// Largest photon count per map (about 30 GB of photons at worst).
+pub const MAX_PHOTONS: u64 = 1_000_000_000;
+
+impl RenderParams {
+    /// Check every parameter's range; the engine assumes valid parameters.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        use crate::render::camera::MAX_IMAGE_SIDE;
+        let bad = |field, message: String| Err(ParamError { field, message });
+        for (field, v) in [("width", self.width), ("height", self.height)] {
+            if let Some(v) = v
+                && !(1..=MAX_IMAGE_SIDE).contains(&v)
+            {
+                return bad(field, format!("must be in 1..={MAX_IMAGE_SIDE}, got {v}"));
+            }
+        }
+        for (field, v) in [
+            ("photons", self.photons),
+            ("caustic_photons", self.caustic_photons),
+        ] {
+            if v > MAX_PHOTONS {
+                return bad(field, format!("must be at most {MAX_PHOTONS}, got {v}"));
+            }
+        }
+        if !(1..=100_000).contains(&self.k) {
+            return bad("k", format!("must be in 1..=100000, got {}", self.k));
+        }
+        if !(1..=65_536).contains(&self.spp) {
+            return bad("spp", format!("must be in 1..=65536, got {}", self.spp));
+        }
+        if !(1..=1024).contains(&self.max_depth) {
+            return bad(
+                "max_depth",
+                format!("must be in 1..=1024, got {}", self.max_depth),
+            );
+        }
+        if self.gather_rays > 65_536 {
+            return bad(
+                "gather_rays",
+                format!("must be at most 65536, got {}", self.gather_rays),
+            );
+        }
+        Ok(())
+    }
 }
 
 impl Default for RenderParams {
@@ -173,6 +227,7 @@ impl Plan {
                     VertexPlan {
                         shadow_rays: indirect,
                         global: read(&[Caustic, Indirect]),
+                        glossy_rays: true,
                         ..nothing
                     }
                 } else {

@@ -2,6 +2,8 @@
 
 use std::f32::consts::FRAC_1_PI;
 
+use glam::Vec3A;
+
 use super::{Plan, VertexPlan};
 use crate::render::geometry::{Hit, Ray, Surface, SurfacePoint, spawn_ray, spawn_ray_to};
 use crate::render::material::{Material, SpecularBranch, Transport};
@@ -34,72 +36,102 @@ pub struct Scratch {
     global_hint: Option<u32>,
 }
 
+/// Whether a ray counts the light surfaces it reaches, so that no light path is counted
+/// twice (the table in `integrator/mod.rs`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Emission {
+    /// Count them: camera paths, and glossy rays where no shadow rays sample the lights.
+    Count,
+    /// Count them only after a mirror or glass: shadow rays from the glossy surface sampled
+    /// the lights it sees directly, but cannot see one through a specular surface.
+    AfterSpecular,
+    /// Never: gather rays. A light seen from a diffuse point, even through mirrors or glass,
+    /// is direct light (shadow rays) or a caustic (the caustic map).
+    Never,
+}
+
+/// What a ray carries about the path it continues.
+#[derive(Clone, Copy)]
+struct Segment<'p> {
+    depth: u32,
+    emission: Emission,
+    /// How to shade the first non-specular vertex this ray reaches.
+    vertex: &'p VertexPlan,
+    /// Split at glass into both branches (only on the camera's own specular chain).
+    split: bool,
+}
+
+impl<'p> Segment<'p> {
+    /// The segment after a specular bounce.
+    fn through_specular(self) -> Segment<'p> {
+        Segment {
+            depth: self.depth + 1,
+            emission: match self.emission {
+                Emission::AfterSpecular => Emission::Count,
+                e => e,
+            },
+            ..self
+        }
+    }
+}
+
 impl Shader<'_> {
     /// Radiance arriving at the camera along `ray`.
     pub fn camera_ray(&self, ray: &Ray, s: &mut Sampler, scratch: &mut Scratch) -> Rgb {
-        self.trace(ray, 0, true, &self.plan.primary, s, scratch)
+        let seg = Segment {
+            depth: 0,
+            emission: Emission::Count,
+            vertex: &self.plan.primary,
+            split: true,
+        };
+        self.trace(ray, seg, s, scratch)
     }
 
-    /// Radiance along `ray`; `count_emission` says whether light surfaces seen directly count
-    /// (they do not when shadow rays already sampled them), `vertex` how to shade the first
-    /// non-specular vertex.
-    fn trace(
-        &self,
-        ray: &Ray,
-        depth: u32,
-        count_emission: bool,
-        vertex: &VertexPlan,
-        s: &mut Sampler,
-        scratch: &mut Scratch,
-    ) -> Rgb {
+    /// Radiance along `ray`.
+    fn trace(&self, ray: &Ray, seg: Segment, s: &mut Sampler, scratch: &mut Scratch) -> Rgb {
         let Some(hit) = self.scene.intersect(ray) else {
             return Rgb::ZERO;
         };
         let wo = -ray.d;
         match self.scene.surface(hit.point.prim) {
-            Surface::Light(li) => {
-                if count_emission {
-                    self.scene.lights[li as usize].emitted(hit.point.n, wo)
-                } else {
-                    Rgb::ZERO
-                }
+            Surface::Light(li) if seg.emission == Emission::Count => {
+                self.scene.lights[li as usize].emitted(hit.point.n, wo)
             }
+            Surface::Light(_) => Rgb::ZERO,
             Surface::Material(mi) => {
                 let m = &self.scene.materials[mi as usize];
                 if m.is_specular() {
-                    self.specular(m, &hit, wo, depth, count_emission, vertex, s, scratch)
+                    self.specular(m, &hit, wo, seg, s, scratch)
                 } else {
-                    self.non_specular(m, &hit.point, wo, depth, vertex, s, scratch)
+                    self.non_specular(m, &hit.point, wo, seg, s, scratch)
                 }
             }
         }
     }
 
     /// Follow mirror and glass: both branches near the camera, one further down.
-    #[allow(clippy::too_many_arguments)]
     fn specular(
         &self,
         m: &Material,
         hit: &Hit,
-        wo: glam::Vec3A,
-        depth: u32,
-        count_emission: bool,
-        vertex: &VertexPlan,
+        wo: Vec3A,
+        seg: Segment,
         s: &mut Sampler,
         scratch: &mut Scratch,
     ) -> Rgb {
-        if depth + 1 >= self.max_depth {
+        if seg.depth + 1 >= self.max_depth {
             return Rgb::ZERO;
         }
         let b = m.specular_branches(wo, hit.point.n, Transport::Radiance);
+        let next = seg.through_specular();
         let mut follow = |br: SpecularBranch, scale: f32, s: &mut Sampler| {
             let ray = spawn_ray(&hit.point, br.wi);
-            br.weight * scale * self.trace(&ray, depth + 1, count_emission, vertex, s, scratch)
+            br.weight * scale * self.trace(&ray, next, s, scratch)
         };
-        // Split only on the camera's own specular chain; gather and glossy rays pick one branch.
-        let split = depth < SPLIT_DEPTH && std::ptr::eq(vertex, &self.plan.primary);
         match (b.reflection, b.transmission) {
-            (Some(r), Some(t)) if split => follow(r, 1.0, s) + follow(t, 1.0, s),
+            (Some(r), Some(t)) if seg.split && seg.depth < SPLIT_DEPTH => {
+                follow(r, 1.0, s) + follow(t, 1.0, s)
+            }
             (Some(r), Some(t)) => {
                 let (lr, lt) = (luminance(r.weight), luminance(t.weight));
                 let pr = lr / (lr + lt);
@@ -114,18 +146,17 @@ impl Shader<'_> {
         }
     }
 
-    /// Radiance leaving a non-specular point toward `wo`, estimated as `vertex` says.
-    #[allow(clippy::too_many_arguments)]
+    /// Radiance leaving a non-specular point toward `wo`, estimated as `seg.vertex` says.
     fn non_specular(
         &self,
         m: &Material,
         sp: &SurfacePoint,
-        wo: glam::Vec3A,
-        depth: u32,
-        vertex: &VertexPlan,
+        wo: Vec3A,
+        seg: Segment,
         s: &mut Sampler,
         scratch: &mut Scratch,
     ) -> Rgb {
+        let vertex = seg.vertex;
         let n_side = if sp.n.dot(wo) < 0.0 { -sp.n } else { sp.n };
         let rho = m.diffuse_reflectance();
         let mut l = Rgb::ZERO;
@@ -141,51 +172,64 @@ impl Shader<'_> {
             if !vertex.global.is_empty()
                 && let Some(cache) = self.global
             {
-                l += rho
-                    * FRAC_1_PI
-                    * cache.lookup(sp.p, n_side, vertex.global, &mut scratch.global_hint);
+                let e = cache.lookup(sp.p, n_side, vertex.global, &mut scratch.global_hint);
+                l += rho * FRAC_1_PI * e;
             }
             if vertex.gather {
-                l += rho * self.final_gather(sp, n_side, depth, s, scratch);
+                l += rho * self.final_gather(sp, n_side, seg.depth, s, scratch);
             }
         }
-        if vertex.glossy_rays
-            && depth + 1 < self.max_depth
-            && let Material::Phong {
-                specular, exponent, ..
-            } = *m
-            && specular != Rgb::ZERO
-        {
-            // Sample the glossy lobe alone: f_s cos / pdf = ks (e + 2) / (e + 1) cos(theta_i).
-            let r = reflect(wo, n_side);
-            let wi = Frame::from_normal(r).to_world(power_cosine(s.next_2d(), exponent));
-            let cos = wi.dot(n_side);
-            if cos > 0.0 {
-                let weight = specular * ((exponent + 2.0) / (exponent + 1.0) * cos);
-                let ray = spawn_ray(sp, wi);
-                let count_emission = !vertex.shadow_rays;
-                l += weight
-                    * self.trace(
-                        &ray,
-                        depth + 1,
-                        count_emission,
-                        &self.plan.secondary,
-                        s,
-                        scratch,
-                    );
-            }
+        if vertex.glossy_rays {
+            l += self.glossy(m, sp, wo, n_side, seg, s, scratch);
         }
         l
     }
 
-    /// Direct light by one shadow ray per light (Jensen 2001, section 9.1.1).
-    fn direct_light(
+    /// The glossy lobe of a Phong surface, by one ray sampled from the lobe alone:
+    /// f_s cos / pdf = ks (e + 2) / (e + 1) cos(theta_i). What it reaches is shaded as a
+    /// secondary vertex (photon maps read directly: gathering happens once per path).
+    #[allow(clippy::too_many_arguments)]
+    fn glossy(
         &self,
         m: &Material,
         sp: &SurfacePoint,
-        wo: glam::Vec3A,
+        wo: Vec3A,
+        n_side: Vec3A,
+        seg: Segment,
         s: &mut Sampler,
+        scratch: &mut Scratch,
     ) -> Rgb {
+        let Material::Phong {
+            specular, exponent, ..
+        } = *m
+        else {
+            return Rgb::ZERO;
+        };
+        if specular == Rgb::ZERO || seg.depth + 1 >= self.max_depth {
+            return Rgb::ZERO;
+        }
+        let r = reflect(wo, n_side);
+        let wi = Frame::from_normal(r).to_world(power_cosine(s.next_2d(), exponent));
+        let cos = wi.dot(n_side);
+        if cos <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let weight = specular * ((exponent + 2.0) / (exponent + 1.0) * cos);
+        let next = Segment {
+            depth: seg.depth + 1,
+            emission: if seg.vertex.shadow_rays {
+                Emission::AfterSpecular
+            } else {
+                Emission::Count
+            },
+            vertex: &self.plan.secondary,
+            split: false,
+        };
+        weight * self.trace(&spawn_ray(sp, wi), next, s, scratch)
+    }
+
+    /// Direct light by one shadow ray per light (Jensen 2001, section 9.1.1).
+    fn direct_light(&self, m: &Material, sp: &SurfacePoint, wo: Vec3A, s: &mut Sampler) -> Rgb {
         let mut l = Rgb::ZERO;
         for light in &self.scene.lights {
             let u = s.next_2d();
@@ -212,19 +256,23 @@ impl Shader<'_> {
     fn final_gather(
         &self,
         sp: &SurfacePoint,
-        n_side: glam::Vec3A,
+        n_side: Vec3A,
         depth: u32,
         s: &mut Sampler,
         scratch: &mut Scratch,
     ) -> Rgb {
         let frame = Frame::from_normal(n_side);
-        let g = self.gather_rays;
+        let seg = Segment {
+            depth: depth + 1,
+            emission: Emission::Never,
+            vertex: &self.plan.gather_hit,
+            split: false,
+        };
         let mut sum = Rgb::ZERO;
-        for _ in 0..g {
+        for _ in 0..self.gather_rays {
             let wi = frame.to_world(cosine_hemisphere(s.next_2d()));
-            let ray = spawn_ray(sp, wi);
-            sum += self.trace(&ray, depth + 1, false, &self.plan.gather_hit, s, scratch);
+            sum += self.trace(&spawn_ray(sp, wi), seg, s, scratch);
         }
-        sum / g as f32
+        sum / self.gather_rays as f32
     }
 }

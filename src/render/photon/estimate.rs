@@ -1,7 +1,7 @@
 //! Density estimation on photon maps.
 //!
 //! The radiance estimate (Jensen 2001, eq. 7.6): L_r(x, wo) ~ sum_p f_r(x, wp, wo) phi_p /
-//! (pi r^2) over the k nearest photons, r the distance to the k-th. Our maps are read only
+//! (pi r^2) over the k nearest photons (r: see `irradiance_knn` for the radius we use). Our maps are read only
 //! through the Lambertian part of the BSDF (glossy and specular reflection are ray traced),
 //! so it factors as (rho / pi) * E with the irradiance E = sum phi_p / (pi r^2), which is what
 //! these functions return.
@@ -33,30 +33,38 @@ pub struct RadianceEstimate {
     pub by_class: [Rgb; 3],
     /// Squared radius of the disc the photons were gathered from.
     pub r2: f32,
-    pub count: u32,
 }
 
-/// Irradiance at `p` (normal `n_side`, facing the query) from the k nearest photons of
-/// `classes` within sqrt(r2_max).
+/// An irradiance query: at `p` on a surface facing `n_side`, from the k nearest photons of
+/// `classes` within sqrt(r2_max); with `skip_marked`, photons marked as irradiance points are
+/// left out (see [`IrradianceCache`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Query {
+    pub p: Vec3A,
+    pub n_side: Vec3A,
+    pub k: usize,
+    pub r2_max: f32,
+    pub classes: ClassMask,
+    pub skip_marked: bool,
+}
+
+/// Irradiance for a [`Query`].
 ///
 /// The estimate is sum of the k nearest / (pi r_{k+1}^2), r_{k+1} the distance to the next
 /// photon: for photons scattered as a Poisson process this is unbiased, whereas Jensen's
 /// k / (pi r_k^2) overestimates by k/(k-1) (+2% at k = 50, and no finite mean at k = 1); it
 /// is the (k-1)/(n V_k) form of the nearest-neighbour density estimate (Loftsgaarden and
 /// Quesenberry 1965) with k+1 neighbours. If fewer than k+1 photons lie within the bound, all
-/// of them are summed over the bound's disc, which is unbiased too. With `skip_marked`,
-/// photons marked as irradiance points are left out (see [`IrradianceCache`]).
-#[allow(clippy::too_many_arguments)]
-pub fn irradiance_knn(
-    map: &PhotonMap,
-    p: Vec3A,
-    n_side: Vec3A,
-    k: usize,
-    r2_max: f32,
-    classes: ClassMask,
-    skip_marked: bool,
-    scratch: &mut KnnScratch,
-) -> RadianceEstimate {
+/// of them are summed over the bound's disc, which is unbiased too.
+pub fn irradiance_knn(map: &PhotonMap, q: &Query, scratch: &mut KnnScratch) -> RadianceEstimate {
+    let Query {
+        p,
+        n_side,
+        k,
+        r2_max,
+        classes,
+        skip_marked,
+    } = *q;
     let filter = |ph: &super::Photon| {
         classes.contains(ph.class())
             && ph.normal().dot(n_side) > NORMAL_COS
@@ -85,7 +93,8 @@ pub fn irradiance_knn(
         let ph = &items[i as usize];
         let sum = &mut sums[ph.class() as usize];
         for (acc, c) in sum.iter_mut().zip(ph.relative_power().to_array()) {
-            *acc += (c * FIXED_ONE) as i64;
+            // Saturating: a valid scene keeps powers O(1), but nothing here may overflow.
+            *acc = acc.saturating_add((c * FIXED_ONE) as i64);
         }
     }
     let scale = map.unit as f64 / (FIXED_ONE as f64 * std::f64::consts::PI * r2 as f64);
@@ -94,7 +103,6 @@ pub fn irradiance_knn(
         irradiance: by_class[0] + by_class[1] + by_class[2],
         by_class,
         r2,
-        count: inner.len() as u32,
     }
 }
 
@@ -136,7 +144,15 @@ pub fn caustic_irradiance(
     r2_max: f32,
     scratch: &mut KnnScratch,
 ) -> RadianceEstimate {
-    irradiance_knn(map, p, n_side, k, r2_max, ClassMask::ALL, false, scratch)
+    let q = Query {
+        p,
+        n_side,
+        k,
+        r2_max,
+        classes: ClassMask::ALL,
+        skip_marked: false,
+    };
+    irradiance_knn(map, &q, scratch)
 }
 
 /// A point with precomputed irradiance (a "radiance photon").
@@ -210,17 +226,15 @@ impl IrradianceCache {
                     .iter()
                     .map(|&i| {
                         let ph = &photons[i];
-                        let n = ph.normal();
-                        let est = irradiance_knn(
-                            map,
-                            ph.position(),
-                            n,
+                        let q = Query {
+                            p: ph.position(),
+                            n_side: ph.normal(),
                             k,
                             r2_max,
                             classes,
-                            true,
-                            scratch,
-                        );
+                            skip_marked: true,
+                        };
+                        let est = irradiance_knn(map, &q, scratch);
                         (est.by_class.map(|c| (c * scale).to_array()), est.r2)
                     })
                     .collect();

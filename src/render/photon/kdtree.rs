@@ -3,7 +3,7 @@
 //! most LEAF items, and the splitting planes live in a separate compact array in heap order
 //! (node i has children 2i+1 and 2i+2), so the top of the tree shares a few cache lines
 //! and a query touches item memory only in the leaves it scans. The items carry nothing for
-//! the tree: a photon stays 32 bytes, plus 8 bytes of split per LEAF photons.
+//! the tree: a photon stays 28 bytes, plus 8 bytes of split per LEAF photons.
 //!
 //! k-nearest-neighbour queries gather every item within a guessed radius and select the k
 //! nearest with `select_nth_unstable` (ties broken by index, so the answer never depends on

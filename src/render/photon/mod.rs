@@ -11,7 +11,7 @@ mod occupancy;
 mod trace;
 
 pub use estimate::{
-    CausticLookup, IrradianceCache, RadianceEstimate, caustic_irradiance, irradiance_knn,
+    CausticLookup, IrradianceCache, Query, RadianceEstimate, caustic_irradiance, irradiance_knn,
 };
 pub use kdtree::{KdItem, KdTree, KnnScratch};
 pub use occupancy::OccupancyGrid;

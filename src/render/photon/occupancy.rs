@@ -4,11 +4,11 @@
 //! of a scene receives no caustic at all), and this turns most per-pixel caustic queries
 //! into one memory read.
 
-use glam::{UVec3, Vec3A};
+use glam::{IVec3, UVec3, Vec3A};
 
 use super::{KdItem, PhotonMap};
 
-/// Cells per axis are capped so that the grid stays small (at most 2^21 bits = 256 KiB).
+/// The number of cells is capped so that the grid stays small (at most 2^21 bits = 256 KiB).
 const MAX_CELLS: u64 = 1 << 21;
 
 pub struct OccupancyGrid {
@@ -31,10 +31,11 @@ impl OccupancyGrid {
             lo = lo.min(p.position());
             hi = hi.max(p.position());
         }
-        // One spare cell on each side for the dilation.
-        let mut cell = radius;
+        // Cells a hair wider than the radius, so that rounding can never put a photon and a
+        // query within the radius two cells apart; spare cells on each side for the dilation.
+        let mut cell = radius * 1.001;
         let dims = loop {
-            let d = ((hi - lo) / cell).floor() + Vec3A::splat(3.0);
+            let d = ((hi - lo) / cell).floor() + Vec3A::splat(4.0);
             if (d.x as u64) * (d.y as u64) * (d.z as u64) <= MAX_CELLS {
                 break UVec3::new(d.x as u32, d.y as u32, d.z as u32);
             }
@@ -48,14 +49,18 @@ impl OccupancyGrid {
             dims,
             bits: vec![0; n.div_ceil(64)],
         };
+        let max = dims.as_ivec3() - IVec3::ONE;
         for p in items {
-            let c = grid
-                .cell_of(p.position())
-                .expect("photons lie inside the grid");
+            // Clamped: rounding may put a photon on the boundary into a spare cell.
+            let c = ((p.position() - origin) * grid.inv_cell).floor().as_ivec3();
+            let c = c.clamp(IVec3::ZERO, max);
             for dz in -1..=1i32 {
                 for dy in -1..=1i32 {
                     for dx in -1..=1i32 {
-                        let q = c.as_ivec3() + glam::IVec3::new(dx, dy, dz);
+                        let q = c + IVec3::new(dx, dy, dz);
+                        if q.cmplt(IVec3::ZERO).any() || q.cmpgt(max).any() {
+                            continue;
+                        }
                         let i = grid.index(q.as_uvec3());
                         grid.bits[i / 64] |= 1 << (i % 64);
                     }
@@ -100,6 +105,35 @@ mod tests {
     use super::*;
     use crate::render::photon::{PathClass, Photon};
     use crate::render::sampling::{Sampler, Stream};
+
+    /// Regression: a photon exactly at the low corner used to round into cell 0 and dilate
+    /// to cell -1 (index out of bounds) for scenes at some scales.
+    #[test]
+    fn photons_on_the_grid_boundary_do_not_panic() {
+        for &(lo, extent) in &[
+            (-0.3f32, 3.4641f32),
+            (-5.0, 17.3205),
+            (-1.0, 3.4641),
+            (1e-3, 2e-3),
+        ] {
+            let photons: Vec<Photon> = [lo, lo + extent * 0.5, lo + extent]
+                .iter()
+                .map(|&c| {
+                    Photon::new(
+                        Vec3A::splat(c),
+                        Vec3A::ONE,
+                        Vec3A::Y,
+                        PathClass::Caustic,
+                        false,
+                    )
+                })
+                .collect();
+            let map = PhotonMap::new(photons, 3, 1.0);
+            let grid = OccupancyGrid::build(&map, 0.01 * extent).unwrap();
+            assert!(grid.maybe_occupied(Vec3A::splat(lo)));
+            assert!(grid.maybe_occupied(Vec3A::splat(lo + extent)));
+        }
+    }
 
     #[test]
     fn a_clear_cell_has_no_photon_within_the_radius() {

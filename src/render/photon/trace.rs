@@ -140,10 +140,10 @@ fn trace(
             let end = ((c + 1) * CHUNK).min(emitted);
             for i in c * CHUNK..end {
                 let mut s = Sampler::new(seed, stream, i);
-                // Paths are picked to carry irradiance points by a hash of their index: a
-                // thinning independent of where their photons land.
-                let irradiance_point =
-                    splitmix64(i ^ splitmix64(seed)).is_multiple_of(IRRADIANCE_STRIDE);
+                // Global-map paths are picked to carry irradiance points by a hash of their
+                // index: a thinning independent of where their photons land.
+                let irradiance_point = matches!(target, Target::Global(_))
+                    && splitmix64(i ^ splitmix64(seed)).is_multiple_of(IRRADIANCE_STRIDE);
                 let path = PathSetup {
                     picker: &picker,
                     target,

@@ -11,9 +11,13 @@ use serde::Deserialize;
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde_json::Value;
 
-/// A finite JSON number.
+/// A finite JSON number of magnitude at most MAX_MAGNITUDE.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Num(pub f64);
+
+/// Every number in a scene stays within this magnitude, so that it and the sums and
+/// squares the engine forms from it (in f32, up to 3.4e38) stay finite.
+pub const MAX_MAGNITUDE: f64 = 1e15;
 
 /// `[x, y, z]`: a point, vector or linear RGB colour.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -28,17 +32,19 @@ impl<'de> Deserialize<'de> for Num {
                 f.write_str("a number")
             }
             fn visit_f64<E: de::Error>(self, v: f64) -> Result<Num, E> {
-                if v.is_finite() {
+                if v.is_finite() && v.abs() <= MAX_MAGNITUDE {
                     Ok(Num(v))
                 } else {
-                    Err(E::custom("expected a finite number"))
+                    Err(E::custom(format!(
+                        "expected a number of magnitude at most {MAX_MAGNITUDE:e}, got {v:e}"
+                    )))
                 }
             }
             fn visit_i64<E: de::Error>(self, v: i64) -> Result<Num, E> {
-                Ok(Num(v as f64))
+                self.visit_f64(v as f64)
             }
             fn visit_u64<E: de::Error>(self, v: u64) -> Result<Num, E> {
-                Ok(Num(v as f64))
+                self.visit_f64(v as f64)
             }
         }
         d.deserialize_any(NumVisitor)

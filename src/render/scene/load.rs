@@ -9,6 +9,7 @@ use serde_json::Value;
 
 use super::format::*;
 use super::{LightDesc, MeshData, ObjectDesc, SceneDesc, SceneError, ShapeDesc};
+use crate::render::camera::MAX_IMAGE_SIDE;
 use crate::render::material::Material;
 use crate::render::math::Rgb;
 
@@ -75,10 +76,19 @@ fn color(v: V3, path: String) -> Result<Rgb, SceneError> {
     if v.0.iter().any(|c| *c < 0.0) {
         return Err(err(path, "colour components must be >= 0"));
     }
-    if v.0.iter().any(|c| (*c as f32).is_infinite()) {
-        return Err(err(path, "colour component too large"));
-    }
     Ok(Rgb::new(v.0[0] as f32, v.0[1] as f32, v.0[2] as f32))
+}
+
+/// A reflectance (albedo): a fraction of light reflected, so at most 1 per channel.
+fn reflectance(v: V3, path: String) -> Result<Rgb, SceneError> {
+    if v.0.iter().any(|c| *c > 1.0) {
+        return Err(err(
+            path,
+            "components must be at most 1: a surface cannot reflect more light than it receives \
+             (colours written 0-255 need dividing by 255)",
+        ));
+    }
+    color(v, path)
 }
 
 fn positive(n: Num, path: String) -> Result<f64, SceneError> {
@@ -147,16 +157,22 @@ fn check_camera(c: CameraDef) -> Result<CameraDef, SceneError> {
             format!("must be in (0, 180) degrees, got {fov}"),
         ));
     }
-    if c.width == 0 || c.height == 0 {
-        let field = if c.width == 0 { "width" } else { "height" };
-        return Err(err(format!("camera.{field}"), "must be at least 1"));
+    for (field, v) in [("width", c.width), ("height", c.height)] {
+        if !(1..=MAX_IMAGE_SIDE).contains(&v) {
+            return Err(err(
+                format!("camera.{field}"),
+                format!("must be in 1..={MAX_IMAGE_SIDE}, got {v}"),
+            ));
+        }
     }
-    let forward = dvec(c.look_at) - dvec(c.position);
-    if forward.length() == 0.0 {
+    let (position, look_at) = (dvec(c.position), dvec(c.look_at));
+    let forward = look_at - position;
+    // Relative to the coordinates: the engine works in f32.
+    if !(forward.length() > 1e-6 * position.length().max(look_at.length())) {
         return Err(err("camera.look_at", "must differ from camera.position"));
     }
     let up = dvec(c.up);
-    if !(forward.normalize().cross(up).length() > 1e-9 * up.length()) {
+    if !(forward.normalize().cross(up).length() > 1e-6 * up.length()) {
         return Err(err(
             "camera.up",
             "must not be zero or parallel to the view direction",
@@ -171,13 +187,13 @@ fn parse_material(v: Value, path: &str) -> Result<Material, SceneError> {
         "diffuse" => {
             let d: DiffuseDef = typed(v, path)?;
             Material::Diffuse {
-                albedo: color(d.albedo, format!("{path}.albedo"))?,
+                albedo: reflectance(d.albedo, format!("{path}.albedo"))?,
             }
         }
         "mirror" => {
             let d: MirrorDef = typed(v, path)?;
             Material::Mirror {
-                reflectance: color(d.reflectance, format!("{path}.reflectance"))?,
+                reflectance: reflectance(d.reflectance, format!("{path}.reflectance"))?,
             }
         }
         "dielectric" => {
@@ -336,7 +352,12 @@ fn load_obj(rel: &str, path: &str, base_dir: Option<&Path>) -> Result<MeshData, 
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, _) = tobj::load_obj(&full, &opts)
+    let file = std::fs::File::open(&full)
+        .map_err(|e| err(&opath, format!("cannot read \"{rel}\": {e}")))?;
+    // Material libraries (`mtllib`) are never opened: they could name any file, and the
+    // scene's materials come from its JSON.
+    let no_materials = |_: &Path| -> tobj::MTLLoadResult { Ok((Vec::new(), Default::default())) };
+    let (models, _) = tobj::load_obj_buf(&mut std::io::BufReader::new(file), &opts, no_materials)
         .map_err(|e| err(&opath, format!("cannot load \"{rel}\": {e}")))?;
     let mut mesh = MeshData {
         positions: Vec::new(),

@@ -8,7 +8,6 @@
 mod format;
 mod load;
 
-use std::fmt;
 use std::path::Path;
 
 use glam::{DVec3, Vec3A};
@@ -23,19 +22,12 @@ use crate::render::material::Material;
 use crate::render::math::Rgb;
 
 /// A scene the loader rejected: the JSON path of the offending value and what is wrong.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{path}: {message}")]
 pub struct SceneError {
     pub path: String,
     pub message: String,
 }
-
-impl fmt::Display for SceneError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.path, self.message)
-    }
-}
-
-impl std::error::Error for SceneError {}
 
 /// A validated scene in world coordinates (f64), as the JSON describes it.
 #[derive(Debug)]
@@ -119,8 +111,9 @@ impl SceneDesc {
         load::parse(&text, dir)
     }
 
-    /// Axis-aligned bounds of all objects and lights (the camera excluded).
-    fn bounds(&self) -> Option<(DVec3, DVec3)> {
+    /// Axis-aligned bounds of the objects, and of the lights too if `with_lights` (the
+    /// camera excluded).
+    fn bounds(&self, with_lights: bool) -> Option<(DVec3, DVec3)> {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
         let mut add = |p: DVec3| {
@@ -146,7 +139,7 @@ impl SceneDesc {
                 ShapeDesc::Mesh(m) => m.positions.iter().for_each(|p| add(*p)),
             }
         }
-        for l in &self.lights {
+        for l in self.lights.iter().filter(|_| with_lights) {
             match l {
                 LightDesc::Point { position, .. } => add(*position),
                 LightDesc::Sphere { center, radius, .. } => {
@@ -179,6 +172,10 @@ pub struct Scene {
     /// Bounds of objects and lights in the engine frame.
     pub bounds_min: Vec3A,
     pub bounds_max: Vec3A,
+    /// Diagonal of the objects' bounds (of everything, if there are no objects): the scene's
+    /// own length scale, which search radii are fractions of. Lights are left out so that a
+    /// distant light does not widen every photon search.
+    pub geometry_extent: f32,
     pub triangle_count: usize,
 }
 
@@ -192,7 +189,10 @@ impl Scene {
     }
 
     pub fn build(desc: &SceneDesc) -> Scene {
-        let (lo, hi) = desc.bounds().unwrap_or((DVec3::ZERO, DVec3::ZERO));
+        let (lo, hi) = desc.bounds(true).unwrap_or((DVec3::ZERO, DVec3::ZERO));
+        let geometry_extent =
+            desc.bounds(false)
+                .map_or((hi - lo).length(), |(a, b)| (b - a).length()) as f32;
         let origin = (lo + hi) * 0.5;
         let local = |p: DVec3| (p - origin).as_vec3a();
         let vec = |v: DVec3| v.as_vec3a();
@@ -254,13 +254,13 @@ impl Scene {
             }
         }
         let accel = Accel::build(prims);
-        let prim_of_light = |i: usize| -> PrimId {
-            accel
-                .prims()
-                .iter()
-                .position(|p| p.surface == Surface::Light(i as u32))
-                .map_or(crate::render::geometry::NO_PRIM, |p| p as PrimId)
-        };
+        let mut light_prims = vec![crate::render::geometry::NO_PRIM; desc.lights.len()];
+        for (id, p) in accel.prims().iter().enumerate() {
+            if let Surface::Light(l) = p.surface {
+                light_prims[l as usize] = id as PrimId;
+            }
+        }
+        let prim_of_light = |i: usize| light_prims[i];
         let lights = desc
             .lights
             .iter()
@@ -318,6 +318,7 @@ impl Scene {
             frame_origin: origin,
             bounds_min: local(lo),
             bounds_max: local(hi),
+            geometry_extent,
             triangle_count,
         }
     }
@@ -337,8 +338,8 @@ impl Scene {
         self.accel.prims()[prim as usize].surface
     }
 
-    /// Length of the diagonal of the scene bounds: the scene's own length scale.
+    /// The scene's length scale (see `geometry_extent`).
     pub fn extent(&self) -> f32 {
-        (self.bounds_max - self.bounds_min).length()
+        self.geometry_extent
     }
 }

@@ -1,0 +1,116 @@
+//! Every light path is counted exactly once, whichever estimator carries it: the photon
+//! integrator's modes (direct light by shadow rays or from photons; indirect light read from
+//! the global map or by final gathering) must agree on a scene with every kind of surface
+//! (ARCHITECTURE.md, "Light transport"). A path dropped or doubled in one mode shows as a
+//! difference in the image mean.
+
+mod common;
+
+use common::{rel, render_image, scene};
+use photonbox::render::RenderParams;
+use photonbox::render::photon::PhotonStore;
+
+/// A box with a glossy Phong floor, a mirror sphere and a glass sphere, lit by a quad light
+/// whose reflection in the mirror falls on the floor's glossy lobe.
+const SCENE: &str = r#"{
+  "camera": {"position": [0, 1, 3.6], "look_at": [0, 0.7, 0], "up": [0, 1, 0], "fov": 45,
+             "width": 40, "height": 40},
+  "materials": {
+    "white": {"type": "diffuse", "albedo": [0.7, 0.7, 0.7]},
+    "red": {"type": "diffuse", "albedo": [0.7, 0.2, 0.2]},
+    "floor": {"type": "phong", "diffuse": [0.3, 0.3, 0.3], "specular": [0.5, 0.5, 0.5], "exponent": 30},
+    "mirror": {"type": "mirror", "reflectance": [0.9, 0.9, 0.9]},
+    "glass": {"type": "dielectric", "ior": 1.5}
+  },
+  "objects": [
+    {"type": "quad", "material": "floor", "corner": [-1, 0, -1], "edge_u": [0, 0, 2], "edge_v": [2, 0, 0]},
+    {"type": "quad", "material": "white", "corner": [-1, 2, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2]},
+    {"type": "quad", "material": "white", "corner": [-1, 0, -1], "edge_u": [2, 0, 0], "edge_v": [0, 2, 0]},
+    {"type": "quad", "material": "red", "corner": [-1, 0, -1], "edge_u": [0, 2, 0], "edge_v": [0, 0, 2]},
+    {"type": "quad", "material": "white", "corner": [1, 0, -1], "edge_u": [0, 0, 2], "edge_v": [0, 2, 0]},
+    {"type": "sphere", "material": "mirror", "center": [-0.45, 0.4, -0.3], "radius": 0.4},
+    {"type": "sphere", "material": "glass", "center": [0.45, 0.35, 0.25], "radius": 0.35}
+  ],
+  "lights": [{"type": "quad", "corner": [-0.3, 1.98, -0.3], "edge_u": [0.6, 0, 0], "edge_v": [0, 0, 0.6],
+              "radiance": [12, 12, 12]}]
+}"#;
+
+#[test]
+fn photon_modes_agree_on_the_image_mean() {
+    let s = scene(SCENE);
+    let mean = |store, gather_rays| {
+        let params = RenderParams {
+            photons: 400_000,
+            caustic_photons: 400_000,
+            k: 100,
+            photon_store: store,
+            gather_rays,
+            spp: 16,
+            ..RenderParams::default()
+        };
+        let m = render_image(&s, &params).mean_rgb(0, 0, 40, 40);
+        (m[0] + m[1] + m[2]) / 3.0
+    };
+    let reference = mean(PhotonStore::Indirect, 0);
+    for (store, g) in [
+        (PhotonStore::Indirect, 6),
+        (PhotonStore::All, 0),
+        (PhotonStore::All, 6),
+    ] {
+        let m = mean(store, g);
+        eprintln!(
+            "{store:?} G={g}: {m:.5} vs indirect G=0 {reference:.5} ({:+.4})",
+            rel(m, reference)
+        );
+        assert!(
+            rel(m, reference).abs() < 0.01,
+            "{store:?} G={g}: {m} vs {reference}"
+        );
+    }
+}
+
+/// A glossy floor that sees a light only through a mirror: the highlight is carried by the
+/// floor's glossy ray alone (shadow rays are blocked by the mirror's delta reflection, and
+/// the floor has no diffuse part for the caustic map to light), so with direct light by
+/// shadow rays or from photons it must be the same, and not black.
+#[test]
+fn a_light_seen_through_a_mirror_in_a_glossy_surface() {
+    let s = scene(
+        r#"{
+      "camera": {"position": [0, 1.2, 2.6], "look_at": [0, 0, 0.9], "up": [0, 1, 0], "fov": 40,
+                 "width": 32, "height": 32},
+      "materials": {
+        "gloss": {"type": "phong", "diffuse": [0, 0, 0], "specular": [0.9, 0.9, 0.9], "exponent": 8},
+        "mirror": {"type": "mirror", "reflectance": [1, 1, 1]}
+      },
+      "objects": [
+        {"type": "quad", "material": "gloss", "corner": [-2, 0, 0.6], "edge_u": [0, 0, 2], "edge_v": [4, 0, 0]},
+        {"type": "quad", "material": "mirror", "corner": [-2, -1, -1], "edge_u": [4, 0, 0], "edge_v": [0, 4, 0]}
+      ],
+      "lights": [{"type": "quad", "corner": [-0.8, 0.6, 0.5], "edge_u": [0, 0.8, 0], "edge_v": [1.6, 0, 0],
+                  "radiance": [10, 10, 10]}]
+    }"#,
+    );
+    let mean = |store| {
+        let params = RenderParams {
+            photon_store: store,
+            gather_rays: 0,
+            spp: 1024,
+            photons: 100_000,
+            caustic_photons: 100_000,
+            ..RenderParams::default()
+        };
+        // The floor: the lower half of the image.
+        render_image(&s, &params).mean_rgb(0, 16, 32, 32)[1]
+    };
+    let (shadow_rays, from_photons) = (mean(PhotonStore::Indirect), mean(PhotonStore::All));
+    eprintln!("glossy floor via mirror: {shadow_rays:.5} vs {from_photons:.5}");
+    assert!(
+        from_photons > 0.05,
+        "the highlight is there at all: {from_photons}"
+    );
+    assert!(
+        rel(shadow_rays, from_photons).abs() < 0.03,
+        "{shadow_rays} vs {from_photons}"
+    );
+}
