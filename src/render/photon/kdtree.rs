@@ -23,6 +23,12 @@ use glam::Vec3A;
 /// An item the tree can hold.
 pub trait KdItem: Copy + Send + Sync {
     fn position(&self) -> Vec3A;
+
+    /// One coordinate of the position (overridden where that is cheaper).
+    #[inline]
+    fn coord(&self, axis: usize) -> f32 {
+        self.position()[axis]
+    }
 }
 
 /// Ranges of at most this many items are leaves.
@@ -308,8 +314,10 @@ impl<T: Copy> Stack<T> {
     }
 }
 
-/// Median split on the axis of largest extent, recursively; large halves in parallel.
-/// Collects (node index, split) pairs, scattered into the heap-ordered array afterwards.
+/// Median split on the axis of largest extent of the node's items, recursively; large
+/// halves in parallel. (Choosing the axis from the node's cell instead, which spares the
+/// pass over the items, was measured: builds 4% faster, queries 25% slower.) Collects (node
+/// index, split) pairs, scattered into the heap-ordered array afterwards.
 fn balance<T: KdItem>(items: &mut [T], node: usize, out: &mut Vec<(usize, Split)>) {
     if items.len() <= LEAF {
         return;
@@ -330,13 +338,11 @@ fn balance<T: KdItem>(items: &mut [T], node: usize, out: &mut Vec<(usize, Split)
         2
     };
     let mid = halves(0, items.len());
-    items.select_nth_unstable_by(mid, |a, b| {
-        a.position()[axis].total_cmp(&b.position()[axis])
-    });
+    items.select_nth_unstable_by(mid, |a, b| a.coord(axis).total_cmp(&b.coord(axis)));
     out.push((
         node,
         Split {
-            value: items[mid].position()[axis],
+            value: items[mid].coord(axis),
             axis: axis as u32,
         },
     ));

@@ -151,6 +151,11 @@ impl KdItem for Photon {
     fn position(&self) -> Vec3A {
         Vec3A::from_array(self.pos)
     }
+
+    #[inline]
+    fn coord(&self, axis: usize) -> f32 {
+        self.pos[axis]
+    }
 }
 
 /// One photon map: photons in a balanced kd-tree, the number emitted to make them, and the
