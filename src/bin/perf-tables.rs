@@ -22,6 +22,15 @@ struct Args {
     /// The scene (default: the seed's scene 1).
     #[arg(long)]
     scene: Option<PathBuf>,
+    /// Only the seed rows with this n (for profiling one row).
+    #[arg(long)]
+    only_n: Option<u64>,
+    /// Only the seed rows with this k.
+    #[arg(long)]
+    only_k: Option<usize>,
+    /// Skip the photon-throughput measurements.
+    #[arg(long)]
+    no_throughput: bool,
 }
 
 /// The seed's measurements (seconds): (n, k, tracing, render).
@@ -106,6 +115,9 @@ fn main() {
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     for (n, k, seed_tracing, seed_render) in SEED {
+        if args.only_n.is_some_and(|x| x != n) || args.only_k.is_some_and(|x| x != k) {
+            continue;
+        }
         let r = measure(&scene, n, k, args.runs);
         let render = r.precompute + r.camera;
         let tracing = match seed_tracing {
@@ -132,6 +144,9 @@ fn main() {
     }
 
     // Throughput: emitted photons per second, and a 1M-photon kd-tree build.
+    if args.no_throughput {
+        return;
+    }
     println!();
     for (label, global, caustic) in [
         ("global map", 1_000_000u64, 0u64),
