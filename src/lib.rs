@@ -8,7 +8,9 @@
 //!   the BVH (`render::geometry`), materials, lights, the camera, photon tracing and photon
 //!   maps (`render::photon`), the integrators (`render::integrator`), the film and image
 //!   output, and the pipeline that runs the phases of a render in order.
-//! - `src/main.rs`: the `photonbox` command line (`render`, `serve`).
+//! - [`server`]: the render server (axum API, SQLite store, fair render pool, photon-map
+//!   cache, SSE progress). It depends on the engine, never the reverse.
+//! - `src/main.rs`: the `photonbox` command line (`render`, `serve`, `user add`).
 //!
 //! See ARCHITECTURE.md for the data flow and the invariants.
 
@@ -16,3 +18,4 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod render;
+pub mod server;

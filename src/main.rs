@@ -24,6 +24,22 @@ enum Command {
     Render(RenderArgs),
     /// Serve render jobs over HTTP.
     Serve(ServeArgs),
+    /// Manage the server's users.
+    #[command(subcommand)]
+    User(UserCommand),
+}
+
+#[derive(Subcommand)]
+enum UserCommand {
+    /// Add a user and print its token (shown only this once).
+    Add {
+        name: String,
+        #[arg(long, default_value = "./photonbox-data")]
+        data: PathBuf,
+        /// Give the user the admin role (sees and may cancel every job).
+        #[arg(long)]
+        admin: bool,
+    },
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -95,10 +111,48 @@ struct RenderArgs {
 
 #[derive(Args)]
 struct ServeArgs {
+    /// Address to listen on (port 0: any free port; the address is printed).
     #[arg(long, default_value = "127.0.0.1:8080")]
     addr: String,
+    /// Data folder: the SQLite store, result images, the admin token.
     #[arg(long, default_value = "./photonbox-data")]
     data: PathBuf,
+    /// Folder of the built-in scenes (default: ./scenes, else the source tree's).
+    #[arg(long)]
+    scenes: Option<PathBuf>,
+    /// Render threads per running job (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Jobs rendering at once, at most one per user.
+    #[arg(long, default_value_t = 4)]
+    max_running: usize,
+    /// Photon-map cache budget (MiB).
+    #[arg(long, default_value_t = 1024)]
+    cache_mb: u64,
+    /// Memory budget of all running renders together (MiB); larger jobs are refused.
+    #[arg(long, default_value_t = 8192)]
+    memory_mb: u64,
+    /// Largest request body (bytes).
+    #[arg(long, default_value_t = 16 << 20)]
+    max_body: usize,
+    /// Largest width*height.
+    #[arg(long, default_value_t = 4096 * 4096)]
+    max_pixels: u64,
+    /// Most photons per map.
+    #[arg(long, default_value_t = 50_000_000)]
+    max_photons: u64,
+    /// Largest k.
+    #[arg(long, default_value_t = 1000)]
+    max_k: usize,
+    /// Most progressive passes.
+    #[arg(long, default_value_t = 100_000)]
+    max_iterations: u32,
+    /// Most triangles per scene.
+    #[arg(long, default_value_t = 2_000_000)]
+    max_triangles: usize,
+    /// Most queued jobs per user (more: 429).
+    #[arg(long, default_value_t = 32)]
+    max_queued: usize,
 }
 
 /// Exit codes: 0 success, 1 failure while rendering or writing, 2 bad input.
@@ -121,6 +175,11 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => run_render(args),
         Command::Serve(args) => run_serve(args),
+        Command::User(UserCommand::Add { name, data, admin }) => {
+            photonbox::server::add_user(&data, &name, admin)
+                .map(|token| println!("{token}"))
+                .map_err(|e| bad(e.to_string()))
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -227,9 +286,37 @@ fn run_render(a: RenderArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn run_serve(_args: ServeArgs) -> anyhow::Result<()> {
-    anyhow::bail!(
-        "the render server is not built yet (it is the next milestone); \
-         render scenes with `photonbox render SCENE.json -o OUT.png`"
-    )
+fn run_serve(a: ServeArgs) -> anyhow::Result<()> {
+    if a.threads == Some(0) {
+        return Err(bad("--threads must be at least 1"));
+    }
+    let scenes = a.scenes.unwrap_or_else(|| {
+        let local = PathBuf::from("scenes");
+        if local.is_dir() {
+            local
+        } else {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
+        }
+    });
+    let threads = a
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()));
+    photonbox::server::serve(photonbox::server::Config {
+        addr: a.addr,
+        data: a.data,
+        scenes,
+        threads,
+        max_running: a.max_running,
+        cache_bytes: a.cache_mb << 20,
+        limits: photonbox::server::Limits {
+            body_bytes: a.max_body,
+            max_pixels: a.max_pixels,
+            max_photons: a.max_photons,
+            max_k: a.max_k,
+            max_iterations: a.max_iterations,
+            max_triangles: a.max_triangles,
+            max_queued_per_user: a.max_queued,
+            memory_bytes: a.memory_mb << 20,
+        },
+    })
 }

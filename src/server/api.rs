@@ -1,0 +1,425 @@
+//! The HTTP API (JSON under /api, bearer tokens), SSE job events, health and metrics.
+
+use std::convert::Infallible;
+use std::time::Duration;
+
+use axum::Json;
+use axum::Router;
+use axum::body::Bytes;
+use axum::extract::rejection::BytesRejection;
+use axum::extract::{DefaultBodyLimit, Path, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::middleware;
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{Html, IntoResponse, Response};
+use axum::routing::get;
+use futures_util::stream::{self, Stream, StreamExt};
+use serde_json::{Value, json};
+
+use super::auth::{self, User};
+use super::error::ApiError;
+use super::jobs::{JobNeeds, JobRequest, ParamsJson, from_json, resolve_scene, result_path};
+use super::state::Snapshot;
+use super::store::{JobRow, Status, now};
+use super::{AppRef, metrics};
+
+pub fn router(app: AppRef) -> Router {
+    let body_limit = app.config.limits.body_bytes;
+    Router::new()
+        .route("/api/jobs", get(list_jobs).post(submit_job))
+        .route("/api/jobs/{id}", get(get_job).delete(delete_job))
+        .route("/api/jobs/{id}/image.png", get(image_png))
+        .route("/api/jobs/{id}/image.exr", get(image_exr))
+        .route("/api/jobs/{id}/events", get(job_events))
+        .route("/api/scenes", get(list_scenes))
+        .route("/api/scenes/{name}", get(get_scene))
+        .route("/api/me", get(me))
+        .route("/healthz", get(|| async { "ok\n" }))
+        .route("/metrics", get(metrics_text))
+        .route("/", get(index))
+        .fallback(|| async { ApiError::not_found("route") })
+        .layer(DefaultBodyLimit::max(body_limit))
+        .layer(middleware::from_fn_with_state(app.clone(), metrics::track))
+        .with_state(app)
+}
+
+async fn index() -> Html<&'static str> {
+    Html(include_str!("../../web/index.html"))
+}
+
+/// The user a request's bearer token belongs to.
+fn authenticate(app: &AppRef, headers: &HeaderMap) -> Result<User, ApiError> {
+    let hash = auth::token_hash(auth::bearer(headers)?);
+    if let Some(u) = app.users.lock().unwrap().get(&hash) {
+        return Ok(u.clone());
+    }
+    let user = app
+        .store
+        .user_by_token_hash(&hash)?
+        .ok_or_else(ApiError::unauthorized)?;
+    app.users.lock().unwrap().insert(hash, user.clone());
+    Ok(user)
+}
+
+fn visible(user: &User, row: &JobRow) -> bool {
+    user.admin || row.user_id == user.id || row.public
+}
+
+fn parse_id(id: &str) -> Result<i64, ApiError> {
+    id.parse().map_err(|_| ApiError::not_found("job"))
+}
+
+/// A job the user may see (others' private jobs do not exist for them: 404).
+fn visible_job(app: &AppRef, user: &User, id: &str) -> Result<(JobRow, Snapshot), ApiError> {
+    let id = parse_id(id)?;
+    match app.jobs.view(id) {
+        Some((row, snap)) if visible(user, &row) => Ok((row, snap)),
+        _ => Err(ApiError::not_found("job")),
+    }
+}
+
+fn job_json(app: &AppRef, user: &User, row: &JobRow, snap: &Snapshot) -> Value {
+    let params: Value = serde_json::from_str(&row.params_json).unwrap_or(Value::Null);
+    let stats: Value = row
+        .stats_json
+        .as_deref()
+        .and_then(|s| serde_json::from_str(s).ok())
+        .unwrap_or(Value::Null);
+    let queue_position = if row.status == Status::Queued {
+        app.scheduler.queue_position(row.id)
+    } else {
+        None
+    };
+    let base = format!("/api/jobs/{}", row.id);
+    json!({
+        "id": row.id,
+        "owner": app.user_name(row.user_id),
+        "mine": row.user_id == user.id,
+        "public": row.public,
+        "scene": row.scene_name,
+        "params": params,
+        "status": row.status.as_str(),
+        "queue_position": queue_position,
+        "progress": snap.progress,
+        "phase": snap.phase,
+        "eta_seconds": snap.eta_seconds,
+        "created": row.created,
+        "started": row.started,
+        "finished": row.finished,
+        "error": row.error,
+        "stats": stats,
+        "links": {
+            "self": base,
+            "png": format!("{base}/image.png"),
+            "exr": format!("{base}/image.exr"),
+            "events": format!("{base}/events"),
+        },
+    })
+}
+
+async fn me(State(app): State<AppRef>, headers: HeaderMap) -> Result<Json<Value>, ApiError> {
+    let user = authenticate(&app, &headers)?;
+    Ok(Json(
+        json!({ "id": user.id, "name": user.name, "admin": user.admin }),
+    ))
+}
+
+async fn list_jobs(State(app): State<AppRef>, headers: HeaderMap) -> Result<Json<Value>, ApiError> {
+    let user = authenticate(&app, &headers)?;
+    let jobs: Vec<Value> = app
+        .jobs
+        .list(|r| visible(&user, r))
+        .iter()
+        .map(|(row, snap)| job_json(&app, &user, row, snap))
+        .collect();
+    Ok(Json(json!({ "jobs": jobs })))
+}
+
+async fn get_job(
+    State(app): State<AppRef>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    let user = authenticate(&app, &headers)?;
+    let (row, snap) = visible_job(&app, &user, &id)?;
+    Ok(Json(job_json(&app, &user, &row, &snap)))
+}
+
+async fn submit_job(
+    State(app): State<AppRef>,
+    headers: HeaderMap,
+    body: Result<Bytes, BytesRejection>,
+) -> Result<Response, ApiError> {
+    let user = authenticate(&app, &headers)?;
+    let body = body.map_err(|r| {
+        let status = r.status();
+        let msg = if status == StatusCode::PAYLOAD_TOO_LARGE {
+            format!(
+                "request body larger than the limit of {} bytes",
+                app.config.limits.body_bytes
+            )
+        } else {
+            r.body_text()
+        };
+        ApiError::new(status, Some("body"), msg)
+    })?;
+    let value: Value = serde_json::from_slice(&body).map_err(|e| {
+        ApiError::new(
+            StatusCode::BAD_REQUEST,
+            Some("body"),
+            format!("malformed JSON: {e}"),
+        )
+    })?;
+    if !value.is_object() {
+        return Err(ApiError::new(
+            StatusCode::BAD_REQUEST,
+            Some("body"),
+            "expected a JSON object",
+        ));
+    }
+    let req: JobRequest = from_json(value, "")?;
+    let params_json: ParamsJson = from_json(req.params.unwrap_or(json!({})), "params")?;
+    let params = params_json.to_params()?;
+    let limits = &app.config.limits;
+    let scene = resolve_scene(&app.catalog, req.scene, req.scene_name.as_deref())?;
+    let needs = JobNeeds::estimate(&scene.desc, &params.render);
+    needs.check(&params.render, limits)?;
+    if app.jobs.queued_of(user.id) >= limits.max_queued_per_user {
+        return Err(ApiError::new(
+            StatusCode::TOO_MANY_REQUESTS,
+            Some("limits.max_queued_per_user"),
+            format!(
+                "you already have {} queued jobs, the limit: wait for some to finish",
+                limits.max_queued_per_user
+            ),
+        ));
+    }
+    let mut row = JobRow {
+        id: 0,
+        user_id: user.id,
+        public: req.public,
+        status: Status::Queued,
+        scene_name: scene.name.clone(),
+        scene_json: req.scene_name.is_none().then(|| scene.json.to_string()),
+        params_json: serde_json::to_string(&params_json)
+            .map_err(|e| ApiError::internal(e.to_string()))?,
+        created: now(),
+        started: None,
+        finished: None,
+        error: None,
+        stats_json: None,
+    };
+    // Durable before it is acknowledged.
+    let app2 = app.clone();
+    let row2 = row.clone();
+    row.id = tokio::task::spawn_blocking(move || app2.store.insert_job(&row2))
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))??;
+    let id = row.id;
+    app.jobs.insert(row);
+    app.scheduler.enqueue(id, user.id, needs.memory_bytes);
+    let body =
+        json!({ "id": id, "status": "queued", "links": { "self": format!("/api/jobs/{id}") } });
+    Ok((StatusCode::ACCEPTED, Json(body)).into_response())
+}
+
+async fn delete_job(
+    State(app): State<AppRef>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    let user = authenticate(&app, &headers)?;
+    let (row, _) = visible_job(&app, &user, &id)?;
+    if !(user.admin || row.user_id == user.id) {
+        return Err(ApiError::new(
+            StatusCode::FORBIDDEN,
+            None,
+            "this public job is read-only for you",
+        ));
+    }
+    let id = row.id;
+    if row.status.is_final() {
+        let app2 = app.clone();
+        tokio::task::spawn_blocking(move || app2.store.delete_job(id))
+            .await
+            .map_err(|e| ApiError::internal(e.to_string()))??;
+        app.jobs.remove(id);
+        for ext in ["png", "exr"] {
+            let _ = std::fs::remove_file(result_path(&app.config.data, id, ext));
+        }
+        return Ok(StatusCode::NO_CONTENT.into_response());
+    }
+    if app.scheduler.dequeue(id) {
+        let row = app.jobs.update(id, |r| {
+            r.status = Status::Cancelled;
+            r.finished = Some(now());
+        });
+        if let Some(row) = row {
+            app.store.update_job(&row)?;
+        }
+        return Ok(Json(json!({ "id": id, "status": "cancelled" })).into_response());
+    }
+    if app.scheduler.cancel_running(id) {
+        // Wait (briefly) until the render has stopped and released its memory.
+        if let Some(live) = app.jobs.live(id) {
+            let mut rx = live.subscribe();
+            let stopped = rx.wait_for(|s| s.status.is_final() || s.status == Status::Queued);
+            let _ = tokio::time::timeout(Duration::from_secs(5), stopped).await;
+        }
+        let status = app.jobs.row(id).map_or(Status::Cancelled, |r| r.status);
+        return Ok(Json(json!({ "id": id, "status": status.as_str() })).into_response());
+    }
+    // Between queue and pool (a race with the dispatcher): the client may retry.
+    Err(ApiError::new(
+        StatusCode::CONFLICT,
+        None,
+        "the job is starting; try again",
+    ))
+}
+
+async fn image(
+    app: AppRef,
+    headers: HeaderMap,
+    id: String,
+    ext: &str,
+    mime: &str,
+) -> Result<Response, ApiError> {
+    let user = authenticate(&app, &headers)?;
+    let (row, _) = visible_job(&app, &user, &id)?;
+    let path = result_path(&app.config.data, row.id, ext);
+    match tokio::fs::read(&path).await {
+        Ok(bytes) => Ok(([(header::CONTENT_TYPE, mime.to_string())], bytes).into_response()),
+        Err(_) => Err(ApiError::new(
+            StatusCode::NOT_FOUND,
+            None,
+            format!("no image yet: the job is {}", row.status.as_str()),
+        )),
+    }
+}
+
+async fn image_png(
+    State(app): State<AppRef>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    image(app, headers, id, "png", "image/png").await
+}
+
+async fn image_exr(
+    State(app): State<AppRef>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, ApiError> {
+    image(app, headers, id, "exr", "image/x-exr").await
+}
+
+/// SSE: `status`, `progress`, `preview`, then one final `done|failed|cancelled`. A client
+/// that connects late first gets the current status and progress.
+async fn job_events(
+    State(app): State<AppRef>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
+    let user = authenticate(&app, &headers)?;
+    let (row, _) = visible_job(&app, &user, &id)?;
+    let live = app
+        .jobs
+        .live(row.id)
+        .ok_or_else(|| ApiError::not_found("job"))?;
+    let rx = live.subscribe();
+    drop(live);
+    let shutdown = app.shutdown.subscribe();
+    struct St {
+        rx: tokio::sync::watch::Receiver<Snapshot>,
+        shutdown: tokio::sync::watch::Receiver<bool>,
+        last: Option<Snapshot>,
+        ended: bool,
+    }
+    let st = St {
+        rx,
+        shutdown,
+        last: None,
+        ended: false,
+    };
+    let events = stream::unfold(st, |mut st| async move {
+        if st.ended {
+            return None;
+        }
+        loop {
+            if *st.shutdown.borrow() {
+                return None;
+            }
+            let snap = st.rx.borrow_and_update().clone();
+            let evs = diff_events(st.last.as_ref(), &snap);
+            if !evs.is_empty() {
+                st.ended = snap.status.is_final();
+                st.last = Some(snap);
+                return Some((evs, st));
+            }
+            tokio::select! {
+                r = st.rx.changed() => if r.is_err() { return None; },
+                _ = st.shutdown.changed() => return None,
+            }
+        }
+    })
+    .flat_map(|evs| stream::iter(evs.into_iter().map(Ok)));
+    Ok(Sse::new(events).keep_alive(KeepAlive::default()))
+}
+
+fn event(name: &str, snap: &Snapshot) -> Event {
+    Event::default()
+        .event(name)
+        .data(serde_json::to_string(snap).unwrap_or_default())
+}
+
+/// The events that take a client from `last` to `now`.
+fn diff_events(last: Option<&Snapshot>, now: &Snapshot) -> Vec<Event> {
+    let mut out = Vec::new();
+    if last.is_none_or(|l| l.status != now.status) {
+        out.push(event("status", now));
+    }
+    if last.is_none_or(|l| l.progress != now.progress || l.phase != now.phase) {
+        out.push(event("progress", now));
+    }
+    if last.map_or(now.previews > 0, |l| now.previews > l.previews) {
+        out.push(event("preview", now));
+    }
+    if now.status.is_final() {
+        out.push(event(now.status.as_str(), now));
+    }
+    out
+}
+
+async fn list_scenes(
+    State(app): State<AppRef>,
+    headers: HeaderMap,
+) -> Result<Json<Value>, ApiError> {
+    authenticate(&app, &headers)?;
+    let scenes: Vec<Value> = app
+        .catalog
+        .list()
+        .into_iter()
+        .map(|(name, description)| json!({ "name": name, "description": description }))
+        .collect();
+    Ok(Json(json!({ "scenes": scenes })))
+}
+
+async fn get_scene(
+    State(app): State<AppRef>,
+    headers: HeaderMap,
+    Path(name): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    authenticate(&app, &headers)?;
+    app.catalog
+        .json(&name)
+        .map(Json)
+        .ok_or_else(|| ApiError::not_found("scene"))
+}
+
+async fn metrics_text(State(app): State<AppRef>) -> Response {
+    (
+        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
+        metrics::render(&app),
+    )
+        .into_response()
+}

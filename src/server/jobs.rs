@@ -1,0 +1,400 @@
+//! What a job is: the request body, its parameters (the CLI's names in snake_case), the
+//! limits a job must respect, the memory it will need, and the photon-map cache key.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use sha2::{Digest, Sha256};
+
+use super::error::ApiError;
+use crate::render::photon::PhotonParams;
+use crate::render::scene::{SceneDesc, ShapeDesc};
+use crate::render::{IntegratorKind, PhotonStore, RenderParams};
+
+/// `POST /api/jobs` body.
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct JobRequest {
+    pub scene: Option<Value>,
+    pub scene_name: Option<String>,
+    #[serde(default)]
+    pub params: Option<Value>,
+    #[serde(default)]
+    pub public: bool,
+}
+
+/// A job's parameters as JSON: every field optional, defaults as on the CLI.
+#[derive(Deserialize, Serialize, Debug, Default, Clone, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ParamsJson {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub integrator: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub photons: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub caustic_photons: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub k: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub photon_store: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gather_rays: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub iterations: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub alpha: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spp: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_depth: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub width: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub height: Option<u32>,
+    /// PNG exposure in stops.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exposure: Option<f32>,
+}
+
+/// Validated parameters of a job.
+#[derive(Clone, Debug)]
+pub struct JobParams {
+    pub render: RenderParams,
+    pub exposure: f32,
+}
+
+/// Deserialize `value` as `T`, naming the JSON path of the first problem under `prefix`.
+pub fn from_json<T: serde::de::DeserializeOwned>(
+    value: Value,
+    prefix: &str,
+) -> Result<T, ApiError> {
+    serde_path_to_error::deserialize(value).map_err(|e| {
+        let inner = e.path().to_string();
+        let path = match (prefix.is_empty(), inner.as_str()) {
+            (true, ".") => "body".to_string(),
+            (true, p) => p.to_string(),
+            (false, ".") => prefix.to_string(),
+            (false, p) => format!("{prefix}.{p}"),
+        };
+        ApiError::invalid(path, e.into_inner().to_string())
+    })
+}
+
+impl ParamsJson {
+    pub fn to_params(&self) -> Result<JobParams, ApiError> {
+        let d = RenderParams::default();
+        let integrator = match self.integrator.as_deref() {
+            None | Some("photon") => IntegratorKind::Photon,
+            Some("raytrace") => IntegratorKind::Raytrace,
+            Some("ppm") => {
+                return Err(ApiError::invalid(
+                    "params.integrator",
+                    "ppm (progressive photon mapping) is not available yet; use photon or raytrace",
+                ));
+            }
+            Some(other) => {
+                return Err(ApiError::invalid(
+                    "params.integrator",
+                    format!("unknown integrator {other:?}: expected raytrace, photon or ppm"),
+                ));
+            }
+        };
+        if self.iterations.is_some() || self.alpha.is_some() {
+            let field = if self.iterations.is_some() {
+                "params.iterations"
+            } else {
+                "params.alpha"
+            };
+            return Err(ApiError::invalid(field, "only for integrator ppm"));
+        }
+        let photon_store = match self.photon_store.as_deref() {
+            None | Some("indirect") => PhotonStore::Indirect,
+            Some("all") => PhotonStore::All,
+            Some("direct_only") => PhotonStore::DirectOnly,
+            Some(other) => {
+                return Err(ApiError::invalid(
+                    "params.photon_store",
+                    format!(
+                        "unknown photon store {other:?}: expected indirect, all or direct_only"
+                    ),
+                ));
+            }
+        };
+        let exposure = self.exposure.unwrap_or(0.0);
+        if !exposure.is_finite() || exposure.abs() > 64.0 {
+            return Err(ApiError::invalid(
+                "params.exposure",
+                "must be a finite number of stops in -64..=64",
+            ));
+        }
+        let render = RenderParams {
+            integrator,
+            photons: self.photons.unwrap_or(d.photons),
+            caustic_photons: self.caustic_photons.unwrap_or(d.caustic_photons),
+            k: self.k.unwrap_or(d.k),
+            photon_store,
+            gather_rays: self.gather_rays.unwrap_or(d.gather_rays),
+            spp: self.spp.unwrap_or(d.spp),
+            max_depth: self.max_depth.unwrap_or(d.max_depth),
+            seed: self.seed.unwrap_or(d.seed),
+            width: self.width,
+            height: self.height,
+        };
+        render
+            .validate()
+            .map_err(|e| ApiError::invalid(format!("params.{}", e.field), e.message))?;
+        Ok(JobParams { render, exposure })
+    }
+}
+
+/// Server limits on what one job may ask for (flags of `photonbox serve`).
+#[derive(Clone, Debug)]
+pub struct Limits {
+    pub body_bytes: usize,
+    pub max_pixels: u64,
+    pub max_photons: u64,
+    pub max_k: usize,
+    pub max_iterations: u32,
+    pub max_triangles: usize,
+    pub max_queued_per_user: usize,
+    /// Memory all running renders together may use.
+    pub memory_bytes: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Limits {
+        Limits {
+            body_bytes: 16 << 20,
+            max_pixels: 4096 * 4096,
+            max_photons: 50_000_000,
+            max_k: 1000,
+            max_iterations: 100_000,
+            max_triangles: 2_000_000,
+            max_queued_per_user: 32,
+            memory_bytes: 8 << 30,
+        }
+    }
+}
+
+/// What a job needs, checked against the limits before it is accepted.
+pub struct JobNeeds {
+    pub pixels: u64,
+    pub triangles: usize,
+    pub memory_bytes: u64,
+}
+
+impl JobNeeds {
+    /// An upper estimate of a render's peak memory: photons while traced and in their
+    /// kd-trees (a global photon path stores at most a few photons: 3 per emitted photon
+    /// bounds the built-in scenes' 1.35 with room), the irradiance cache, the film, the BVH.
+    pub fn estimate(desc: &SceneDesc, p: &RenderParams) -> JobNeeds {
+        let width = p.width.unwrap_or(desc.camera.width) as u64;
+        let height = p.height.unwrap_or(desc.camera.height) as u64;
+        let pixels = width * height;
+        let triangles: usize = desc
+            .objects
+            .iter()
+            .map(|o| match &o.shape {
+                ShapeDesc::Mesh(m) => m.triangles.len(),
+                _ => 1,
+            })
+            .sum();
+        let photon_bytes = 32u64;
+        let (global, caustic) = match p.integrator {
+            IntegratorKind::Raytrace => (0, 0),
+            IntegratorKind::Photon => (p.photons * 3, p.caustic_photons),
+        };
+        // Traced photons are gathered in per-chunk buffers, then copied into the map.
+        let maps = (global + caustic) * photon_bytes * 2;
+        let irradiance = global / 4 * 64;
+        let film = pixels * 12 * 3;
+        let geometry = triangles as u64 * 160;
+        JobNeeds {
+            pixels,
+            triangles,
+            memory_bytes: maps + irradiance + film + geometry + (16 << 20),
+        }
+    }
+
+    pub fn check(&self, p: &RenderParams, limits: &Limits) -> Result<(), ApiError> {
+        if self.pixels > limits.max_pixels {
+            return Err(ApiError::invalid(
+                "params.width",
+                format!(
+                    "width*height = {} exceeds the limit of {} pixels",
+                    self.pixels, limits.max_pixels
+                ),
+            ));
+        }
+        for (field, n) in [
+            ("params.photons", p.photons),
+            ("params.caustic_photons", p.caustic_photons),
+        ] {
+            if n > limits.max_photons {
+                return Err(ApiError::invalid(
+                    field,
+                    format!("{n} exceeds the limit of {} photons", limits.max_photons),
+                ));
+            }
+        }
+        if p.k > limits.max_k {
+            return Err(ApiError::invalid(
+                "params.k",
+                format!("{} exceeds the limit of {}", p.k, limits.max_k),
+            ));
+        }
+        if self.triangles > limits.max_triangles {
+            return Err(ApiError::invalid(
+                "scene.objects",
+                format!(
+                    "{} triangles exceed the limit of {}",
+                    self.triangles, limits.max_triangles
+                ),
+            ));
+        }
+        if self.memory_bytes > limits.memory_bytes {
+            return Err(ApiError::invalid(
+                "params",
+                format!(
+                    "this job needs an estimated {} MiB, more than the server's memory budget of {} MiB \
+                     (fewer photons or pixels would fit)",
+                    self.memory_bytes >> 20,
+                    limits.memory_bytes >> 20
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The built-in scenes (`scenes/*.json`).
+pub struct SceneCatalog {
+    pub dir: PathBuf,
+}
+
+impl SceneCatalog {
+    /// (name, description) of every built-in scene, sorted by name.
+    pub fn list(&self) -> Vec<(String, Option<String>)> {
+        let mut out = Vec::new();
+        let Ok(entries) = std::fs::read_dir(&self.dir) else {
+            return out;
+        };
+        for e in entries.flatten() {
+            let path = e.path();
+            if path.extension().is_some_and(|x| x == "json")
+                && let Some(stem) = path.file_stem().and_then(|s| s.to_str())
+            {
+                let description = std::fs::read_to_string(&path)
+                    .ok()
+                    .and_then(|t| serde_json::from_str::<Value>(&t).ok())
+                    .and_then(|v| v.get("description")?.as_str().map(str::to_string));
+                out.push((stem.to_string(), description));
+            }
+        }
+        out.sort();
+        out
+    }
+
+    /// The path of a built-in scene, if `name` is one (names are plain file stems).
+    pub fn path(&self, name: &str) -> Option<PathBuf> {
+        let plain = !name.is_empty()
+            && name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+        let p = self.dir.join(format!("{name}.json"));
+        (plain && p.is_file()).then_some(p)
+    }
+
+    pub fn json(&self, name: &str) -> Option<Value> {
+        let text = std::fs::read_to_string(self.path(name)?).ok()?;
+        serde_json::from_str(&text).ok()
+    }
+}
+
+/// The scene of a job: parsed and validated, with the JSON the cache key is made from.
+pub struct ResolvedScene {
+    pub desc: SceneDesc,
+    pub json: Value,
+    pub name: Option<String>,
+}
+
+/// Resolve a job's scene: a built-in by name, or an uploaded one (which may not reference
+/// files: `obj` meshes are for built-in scenes).
+pub fn resolve_scene(
+    catalog: &SceneCatalog,
+    scene: Option<Value>,
+    scene_name: Option<&str>,
+) -> Result<ResolvedScene, ApiError> {
+    match (scene, scene_name) {
+        (Some(_), Some(_)) => Err(ApiError::invalid(
+            "scene_name",
+            "give either scene or scene_name, not both",
+        )),
+        (None, None) => Err(ApiError::invalid(
+            "scene",
+            "missing: give a scene object or a built-in scene_name",
+        )),
+        (None, Some(name)) => {
+            let path = catalog.path(name).ok_or_else(|| {
+                ApiError::invalid("scene_name", format!("no built-in scene named {name:?}"))
+            })?;
+            let desc = SceneDesc::load(&path)
+                .map_err(|e| ApiError::internal(format!("built-in scene {name}: {e}")))?;
+            let json = catalog.json(name).unwrap_or(Value::Null);
+            Ok(ResolvedScene {
+                desc,
+                json,
+                name: Some(name.to_string()),
+            })
+        }
+        (Some(value), None) => {
+            let desc = SceneDesc::from_value(value.clone(), None)
+                .map_err(|e| ApiError::invalid(scene_path(&e.path), e.message))?;
+            let name = desc.name.clone();
+            Ok(ResolvedScene {
+                desc,
+                json: value,
+                name,
+            })
+        }
+    }
+}
+
+/// A scene error's path as a path into the request body.
+fn scene_path(p: &str) -> String {
+    if p == "scene" || p.starts_with("scene.") {
+        p.to_string()
+    } else {
+        format!("scene.{p}")
+    }
+}
+
+/// The photon-map cache key: a content hash of the scene without its camera, the
+/// parameters that shape the maps, and the renderer's version.
+pub fn cache_key(scene_json: &Value, photon_params: &PhotonParams) -> String {
+    let mut scene = scene_json.clone();
+    if let Some(obj) = scene.as_object_mut() {
+        obj.remove("camera");
+        obj.remove("name");
+        obj.remove("description");
+    }
+    // serde_json's maps are sorted by key: the text is canonical.
+    let text = format!(
+        "photonbox {}\n{}\n{:?}",
+        env!("CARGO_PKG_VERSION"),
+        scene,
+        photon_params
+    );
+    Sha256::digest(text.as_bytes())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// Where a finished job's image lives.
+pub fn result_path(data: &Path, id: i64, ext: &str) -> PathBuf {
+    data.join("results").join(format!("{id}.{ext}"))
+}

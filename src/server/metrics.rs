@@ -1,0 +1,108 @@
+//! Prometheus text-format metrics: jobs by status, queue depth, render seconds, photon-map
+//! cache hits/misses/bytes, HTTP requests by route and status.
+
+use std::collections::BTreeMap;
+use std::fmt::Write;
+use std::sync::Mutex;
+use std::sync::atomic::Ordering;
+
+use axum::extract::{MatchedPath, Request, State};
+use axum::middleware::Next;
+use axum::response::Response;
+
+use super::AppRef;
+
+#[derive(Default)]
+pub struct Metrics {
+    http: Mutex<BTreeMap<(String, String, u16), u64>>,
+    render_seconds: Mutex<f64>,
+}
+
+impl Metrics {
+    pub fn add_render_seconds(&self, s: f64) {
+        *self
+            .render_seconds
+            .lock()
+            .unwrap_or_else(|e| e.into_inner()) += s;
+    }
+
+    fn record(&self, method: &str, route: &str, status: u16) {
+        *self
+            .http
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .entry((method.to_string(), route.to_string(), status))
+            .or_default() += 1;
+    }
+}
+
+/// Middleware: count every request by method, matched route and status.
+pub async fn track(State(app): State<AppRef>, req: Request, next: Next) -> Response {
+    let route = req
+        .extensions()
+        .get::<MatchedPath>()
+        .map_or("unmatched", |m| m.as_str())
+        .to_string();
+    let method = req.method().as_str().to_string();
+    let resp = next.run(req).await;
+    app.metrics.record(&method, &route, resp.status().as_u16());
+    resp
+}
+
+pub fn render(app: &super::App) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "# HELP photonbox_jobs Jobs by status.\n# TYPE photonbox_jobs gauge"
+    );
+    for (status, n) in app.jobs.count_by_status() {
+        let _ = writeln!(s, "photonbox_jobs{{status=\"{status}\"}} {n}");
+    }
+    let _ = writeln!(
+        s,
+        "# HELP photonbox_queue_depth Jobs waiting to start.\n# TYPE photonbox_queue_depth gauge\nphotonbox_queue_depth {}",
+        app.scheduler.queue_depth()
+    );
+    let secs = *app
+        .metrics
+        .render_seconds
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    let _ = writeln!(
+        s,
+        "# HELP photonbox_render_seconds_total Wall-clock seconds spent running jobs.\n# TYPE photonbox_render_seconds_total counter\nphotonbox_render_seconds_total {secs}"
+    );
+    let c = &app.cache;
+    let _ = writeln!(
+        s,
+        "# HELP photonbox_photon_map_cache_hits_total Jobs that reused cached photon maps.\n# TYPE photonbox_photon_map_cache_hits_total counter\nphotonbox_photon_map_cache_hits_total {}",
+        c.hits.load(Ordering::Relaxed)
+    );
+    let _ = writeln!(
+        s,
+        "# HELP photonbox_photon_map_cache_misses_total Jobs that traced their photon maps.\n# TYPE photonbox_photon_map_cache_misses_total counter\nphotonbox_photon_map_cache_misses_total {}",
+        c.misses.load(Ordering::Relaxed)
+    );
+    let _ = writeln!(
+        s,
+        "# HELP photonbox_photon_map_cache_bytes Bytes of photon maps held by the cache.\n# TYPE photonbox_photon_map_cache_bytes gauge\nphotonbox_photon_map_cache_bytes {}",
+        c.bytes()
+    );
+    let _ = writeln!(
+        s,
+        "# HELP photonbox_http_requests_total HTTP requests by method, route and status.\n# TYPE photonbox_http_requests_total counter"
+    );
+    for ((method, route, status), n) in app
+        .metrics
+        .http
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .iter()
+    {
+        let _ = writeln!(
+            s,
+            "photonbox_http_requests_total{{method=\"{method}\",route=\"{route}\",status=\"{status}\"}} {n}"
+        );
+    }
+    s
+}

@@ -1,0 +1,258 @@
+//! The render server: an axum API over a durable job store, a fair render pool and a
+//! photon-map cache. See ARCHITECTURE.md for a job's data flow.
+//!
+//! The server depends on the engine (`crate::render`), never the reverse.
+
+mod api;
+mod auth;
+mod cache;
+mod error;
+mod jobs;
+mod metrics;
+mod runner;
+mod scheduler;
+mod state;
+mod store;
+
+use std::collections::HashMap;
+use std::io::Write;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use anyhow::Context;
+use tokio::sync::watch;
+
+pub use jobs::Limits;
+
+use auth::User;
+use cache::MapCache;
+use jobs::{JobNeeds, ParamsJson, SceneCatalog, resolve_scene};
+use metrics::Metrics;
+use scheduler::Scheduler;
+use state::Jobs;
+use store::{Status, Store};
+
+/// Everything `photonbox serve` can be told.
+#[derive(Clone, Debug)]
+pub struct Config {
+    pub addr: String,
+    pub data: PathBuf,
+    /// Built-in scenes (`scenes/`).
+    pub scenes: PathBuf,
+    /// Render threads per running job.
+    pub threads: usize,
+    /// Jobs rendering at once (one per user at most).
+    pub max_running: usize,
+    pub cache_bytes: u64,
+    pub limits: Limits,
+}
+
+/// Shared state of a running server.
+pub struct App {
+    pub config: Config,
+    store: Store,
+    jobs: Jobs,
+    scheduler: Scheduler,
+    cache: MapCache,
+    catalog: SceneCatalog,
+    metrics: Metrics,
+    /// Users by token hash (tokens never change, so entries never go stale).
+    users: Mutex<HashMap<String, User>>,
+    user_names: Mutex<HashMap<i64, String>>,
+    /// Becomes true when the server shuts down: SSE streams end.
+    shutdown: watch::Sender<bool>,
+}
+
+pub type AppRef = Arc<App>;
+
+fn ensure_dirs(data: &Path) -> anyhow::Result<()> {
+    std::fs::create_dir_all(data.join("results"))
+        .with_context(|| format!("creating {}", data.display()))
+}
+
+/// `photonbox user add NAME`: print a new user's token.
+pub fn add_user(data: &Path, name: &str, admin: bool) -> anyhow::Result<String> {
+    anyhow::ensure!(
+        auth::valid_name(name),
+        "user name {name:?}: use 1-64 letters, digits, '-', '_' or '.'"
+    );
+    ensure_dirs(data)?;
+    let store = Store::open(data).context("opening the store")?;
+    let (_, token) = store.add_user(name, admin).map_err(|e| match e {
+        rusqlite::Error::SqliteFailure(f, _)
+            if f.code == rusqlite::ErrorCode::ConstraintViolation =>
+        {
+            anyhow::anyhow!("a user named {name:?} already exists")
+        }
+        e => anyhow::anyhow!("adding the user: {e}"),
+    })?;
+    Ok(token)
+}
+
+/// Write the admin token beside the store, readable by its owner only.
+fn write_admin_token(data: &Path, token: &str) -> anyhow::Result<()> {
+    let path = data.join("admin-token");
+    let mut opts = std::fs::OpenOptions::new();
+    opts.write(true).create(true).truncate(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::mode(&mut opts, 0o600);
+    let mut f = opts
+        .open(&path)
+        .with_context(|| format!("writing {}", path.display()))?;
+    f.write_all(token.as_bytes())?;
+    f.sync_all()?;
+    Ok(())
+}
+
+impl App {
+    fn open(config: Config) -> anyhow::Result<(Arc<App>, Option<String>)> {
+        ensure_dirs(&config.data)?;
+        let store = Store::open(&config.data).context("opening the store")?;
+        let mut admin_token = None;
+        if store.user_count()? == 0 {
+            let (_, token) = store.add_user("admin", true)?;
+            write_admin_token(&config.data, &token)?;
+            admin_token = Some(token);
+        } else if let Ok(t) = std::fs::read_to_string(config.data.join("admin-token")) {
+            admin_token = Some(t.trim().to_string());
+        }
+        let app = Arc::new(App {
+            scheduler: Scheduler::new(config.max_running, config.limits.memory_bytes),
+            cache: MapCache::new(config.cache_bytes),
+            catalog: SceneCatalog {
+                dir: config.scenes.clone(),
+            },
+            config,
+            store,
+            jobs: Jobs::default(),
+            metrics: Metrics::default(),
+            users: Mutex::new(HashMap::new()),
+            user_names: Mutex::new(HashMap::new()),
+            shutdown: watch::channel(false).0,
+        });
+        app.recover()?;
+        Ok((app, admin_token))
+    }
+
+    /// Load every job; those that were running when the server died run again.
+    fn recover(&self) -> anyhow::Result<()> {
+        for (id, name) in self.store.user_names()? {
+            self.user_names.lock().unwrap().insert(id, name);
+        }
+        for mut row in self.store.all_jobs()? {
+            if row.status == Status::Running {
+                row.status = Status::Queued;
+                row.started = None;
+                self.store.update_job(&row)?;
+            }
+            let queued = row.status == Status::Queued;
+            let (id, user) = (row.id, row.user_id);
+            let memory = if queued { self.memory_of(&row) } else { 0 };
+            self.jobs.insert(row);
+            if queued {
+                self.scheduler.enqueue(id, user, memory);
+            }
+        }
+        Ok(())
+    }
+
+    /// A stored job's memory estimate (0 if it no longer parses: it will fail when run).
+    fn memory_of(&self, row: &store::JobRow) -> u64 {
+        let params = serde_json::from_str::<ParamsJson>(&row.params_json)
+            .ok()
+            .and_then(|p| p.to_params().ok());
+        let scene = row
+            .scene_json
+            .as_deref()
+            .and_then(|t| serde_json::from_str(t).ok());
+        let name = row
+            .scene_name
+            .as_deref()
+            .filter(|_| row.scene_json.is_none());
+        match (params, resolve_scene(&self.catalog, scene, name)) {
+            (Some(p), Ok(s)) => JobNeeds::estimate(&s.desc, &p.render).memory_bytes,
+            _ => 0,
+        }
+    }
+
+    fn user_name(&self, id: i64) -> String {
+        if let Some(n) = self.user_names.lock().unwrap().get(&id) {
+            return n.clone();
+        }
+        let names = self.store.user_names().unwrap_or_default();
+        let mut map = self.user_names.lock().unwrap();
+        map.extend(names);
+        map.get(&id).cloned().unwrap_or_else(|| format!("user{id}"))
+    }
+}
+
+/// Run the server until SIGINT or SIGTERM. Prints the address and a sign-in URL.
+pub fn serve(config: Config) -> anyhow::Result<()> {
+    let (app, admin_token) = App::open(config.clone())?;
+    let dispatcher = {
+        let app = app.clone();
+        std::thread::Builder::new()
+            .name("dispatcher".into())
+            .spawn(move || Scheduler::run_dispatcher(app))?
+    };
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
+    rt.block_on(async {
+        let listener = tokio::net::TcpListener::bind(&config.addr)
+            .await
+            .with_context(|| format!("listening on {}", config.addr))?;
+        let addr: SocketAddr = listener.local_addr()?;
+        println!("photonbox: listening on http://{addr}");
+        match &admin_token {
+            Some(t) => println!("photonbox: gallery (signed in as admin): http://{addr}/?token={t}"),
+            None => println!(
+                "photonbox: gallery: http://{addr}/ (the admin token file is gone; add a user with `photonbox user add NAME`)"
+            ),
+        }
+        let _ = std::io::stdout().flush();
+        let router = api::router(app.clone());
+        let app2 = app.clone();
+        axum::serve(listener, router)
+            .with_graceful_shutdown(async move {
+                shutdown_signal().await;
+                tracing::info!("shutting down");
+                // End SSE streams and stop renders (they go back to the queue).
+                app2.shutdown.send_replace(true);
+                app2.scheduler.stop();
+            })
+            .await?;
+        anyhow::Ok(())
+    })?;
+    app.scheduler.stop();
+    if !app.scheduler.wait_idle(Duration::from_secs(10)) {
+        tracing::warn!("renders still running at exit; they run again at the next start");
+    }
+    let _ = dispatcher.join();
+    println!("photonbox: stopped");
+    Ok(())
+}
+
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        _ = ctrl_c => {},
+        _ = term => {},
+    }
+}

@@ -1,0 +1,237 @@
+//! Running one job on its own rayon pool: resolve the scene, get the photon maps from the
+//! cache or trace them, render, write the images, and record the outcome. Progress goes to
+//! the job's watch channel; a panic inside the render fails that job only.
+
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use serde_json::{Value, json};
+
+use super::App;
+use super::cache::CacheOutcome;
+use super::jobs::{ParamsJson, cache_key, resolve_scene, result_path};
+use super::store::{Status, now};
+use crate::render::effects::analyse;
+use crate::render::photon::build_photon_maps;
+use crate::render::{
+    Cancelled, Control, Phase, Progress, RenderParams, Scene, output, render_with_maps,
+};
+
+/// Why a job did not finish.
+enum Failure {
+    Cancelled,
+    Error(String),
+}
+
+impl From<Cancelled> for Failure {
+    fn from(_: Cancelled) -> Failure {
+        Failure::Cancelled
+    }
+}
+
+pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
+    let Some(row) = app.jobs.update(id, |r| {
+        r.status = Status::Running;
+        r.started = Some(now());
+        r.error = None;
+    }) else {
+        return; // deleted meanwhile
+    };
+    if let Err(e) = app.store.update_job(&row) {
+        tracing::error!("job {id}: store: {e}");
+    }
+    let t0 = Instant::now();
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        execute(
+            app,
+            id,
+            &row.params_json,
+            row.scene_json.as_deref(),
+            row.scene_name.as_deref(),
+            cancel,
+        )
+    }));
+    let result = match result {
+        Ok(r) => r,
+        Err(panic) => {
+            let msg = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown panic".into());
+            Err(Failure::Error(format!("the renderer panicked: {msg}")))
+        }
+    };
+    app.metrics.add_render_seconds(t0.elapsed().as_secs_f64());
+    let requeue = matches!(result, Err(Failure::Cancelled)) && app.scheduler.is_stopping();
+    let updated = app.jobs.update(id, |r| match &result {
+        Ok(stats) => {
+            r.status = Status::Done;
+            r.finished = Some(now());
+            r.stats_json = Some(stats.to_string());
+        }
+        Err(Failure::Cancelled) if requeue => {
+            r.status = Status::Queued;
+            r.started = None;
+        }
+        Err(Failure::Cancelled) => {
+            r.status = Status::Cancelled;
+            r.finished = Some(now());
+        }
+        Err(Failure::Error(e)) => {
+            r.status = Status::Failed;
+            r.finished = Some(now());
+            r.error = Some(e.clone());
+        }
+    });
+    if let Some(row) = updated
+        && let Err(e) = app.store.update_job(&row)
+    {
+        tracing::error!("job {id}: store: {e}");
+    }
+}
+
+/// Relative cost of each phase, for one progress fraction over the whole job.
+fn phase_weights(p: &RenderParams, pixels: u64) -> [f64; 4] {
+    let photons = (p.photons + p.caustic_photons) as f64;
+    let samples = (pixels * p.spp as u64) as f64 * (1.0 + 1.5 * p.gather_rays as f64);
+    [
+        photons / 3e6,
+        photons / 1e7,
+        p.photons as f64 * 0.35 * p.k as f64 / 2e7,
+        samples / 3e6,
+    ]
+}
+
+fn phase_index(phase: Phase) -> usize {
+    match phase {
+        Phase::PhotonTrace => 0,
+        Phase::BuildMaps => 1,
+        Phase::Precompute => 2,
+        Phase::Render => 3,
+    }
+}
+
+fn execute(
+    app: &Arc<App>,
+    id: i64,
+    params_json: &str,
+    scene_json: Option<&str>,
+    scene_name: Option<&str>,
+    cancel: &Arc<AtomicBool>,
+) -> Result<Value, Failure> {
+    let bad = |e: String| Failure::Error(e);
+    let pj: ParamsJson =
+        serde_json::from_str(params_json).map_err(|e| bad(format!("params: {e}")))?;
+    let params = pj.to_params().map_err(|e| bad(e.message))?;
+    let scene_value = match scene_json {
+        Some(t) => Some(serde_json::from_str(t).map_err(|e| bad(format!("scene: {e}")))?),
+        None => None,
+    };
+    let resolved = resolve_scene(
+        &app.catalog,
+        scene_value,
+        scene_name.filter(|_| scene_json.is_none()),
+    )
+    .map_err(|e| bad(e.message))?;
+    let scene = Scene::build(&resolved.desc);
+    let p = &params.render;
+    let width = p.width.unwrap_or(scene.camera.width) as u64;
+    let height = p.height.unwrap_or(scene.camera.height) as u64;
+
+    // One fraction over the phases, published monotone and at most every half percent.
+    let weights = phase_weights(p, width * height);
+    let total: f64 = weights.iter().sum::<f64>().max(1e-12);
+    let live = app.jobs.live(id).ok_or_else(|| bad("job deleted".into()))?;
+    let started = Instant::now();
+    let last = Mutex::new((0.0f64, None::<&'static str>));
+    let on_progress = |pr: Progress| {
+        let i = phase_index(pr.phase);
+        let before: f64 = weights[..i].iter().sum();
+        let within = if pr.total > 0 {
+            pr.done as f64 / pr.total as f64
+        } else {
+            1.0
+        };
+        let f = ((before + weights[i] * within) / total).clamp(0.0, 0.999);
+        let mut last = last.lock().unwrap_or_else(|e| e.into_inner());
+        let phase = Some(pr.phase.name());
+        if f < last.0 + 0.005 && phase == last.1 {
+            return;
+        }
+        let f = f.max(last.0);
+        *last = (f, phase);
+        let elapsed = started.elapsed().as_secs_f64();
+        let eta = (f > 0.02).then(|| elapsed * (1.0 - f) / f);
+        live.send_modify(|s| {
+            if s.status == Status::Running {
+                s.progress = f;
+                s.phase = phase;
+                s.eta_seconds = eta;
+            }
+        });
+    };
+    let control = Control {
+        cancel: Some(cancel),
+        progress: Some(&on_progress),
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(app.config.threads)
+        .thread_name(move |i| format!("job-{id}-render-{i}"))
+        .build()
+        .map_err(|e| bad(format!("starting render threads: {e}")))?;
+    let (out, outcome, key) = pool.install(|| -> Result<_, Failure> {
+        let analysis = analyse(&scene, p);
+        let pp = analysis.photon_params;
+        let key = cache_key(&resolved.json, &pp);
+        let (maps, outcome) = if pp.global_photons + pp.caustic_photons == 0 {
+            let maps = build_photon_maps(&scene, &pp, &control)?;
+            (Arc::new(maps), CacheOutcome::NotNeeded)
+        } else {
+            app.cache
+                .get_or_build(&key, cancel, || build_photon_maps(&scene, &pp, &control))?
+        };
+        let out = render_with_maps(&scene, &maps, p, &control)?;
+        Ok((out, outcome, key))
+    })?;
+    drop(pool);
+
+    let png = result_path(&app.config.data, id, "png");
+    let exr = result_path(&app.config.data, id, "exr");
+    write_atomically(&png, |tmp| {
+        output::write_png(&out.image, params.exposure, tmp)
+    })?;
+    write_atomically(&exr, |tmp| output::write_exr(&out.image, tmp))?;
+
+    let mut stats = serde_json::to_value(&out.stats).map_err(|e| bad(e.to_string()))?;
+    if outcome == CacheOutcome::Hit {
+        // The maps were traced by an earlier job: this one traced nothing.
+        stats["times"]["photon_trace"] = json!(0.0);
+        stats["times"]["build_maps"] = json!(0.0);
+        let t = &out.stats.times;
+        stats["times"]["total"] = json!(t.precompute + t.render);
+    }
+    let traced = match outcome {
+        CacheOutcome::Miss => out.stats.photons.global_emitted + out.stats.photons.caustic_emitted,
+        _ => 0,
+    };
+    stats["photons"]["traced_by_this_job"] = json!(traced);
+    stats["cache"] = json!({ "photon_maps": outcome.as_str(), "key": &key[..16] });
+    stats["params"]["exposure"] = json!(params.exposure);
+    Ok(stats)
+}
+
+/// Write a file through a temporary name and a rename, so that a crash never leaves a
+/// half-written image under the final name.
+fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&Path) -> image::ImageResult<()>,
+) -> Result<(), Failure> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("tmp");
+    let tmp = path.with_extension(format!("partial.{ext}"));
+    write(&tmp).map_err(|e| Failure::Error(format!("writing {}: {e}", path.display())))?;
+    std::fs::rename(&tmp, path)
+        .map_err(|e| Failure::Error(format!("writing {}: {e}", path.display())))
+}

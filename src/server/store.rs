@@ -1,0 +1,242 @@
+//! The durable store: users and jobs in SQLite (WAL, synchronous=FULL: a job acknowledged
+//! with 202 has been committed and survives SIGKILL or power loss). Result images are files
+//! beside it (see `jobs::result_path`). The server keeps a live in-memory view of the jobs
+//! and writes every state change through to here.
+
+use std::path::Path;
+use std::sync::Mutex;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use rusqlite::{Connection, OptionalExtension, params};
+
+use super::auth::{User, UserId, new_token, token_hash};
+
+/// A job's lifecycle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Status {
+    Queued,
+    Running,
+    Done,
+    Failed,
+    Cancelled,
+}
+
+impl Status {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Status::Queued => "queued",
+            Status::Running => "running",
+            Status::Done => "done",
+            Status::Failed => "failed",
+            Status::Cancelled => "cancelled",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Status> {
+        Some(match s {
+            "queued" => Status::Queued,
+            "running" => Status::Running,
+            "done" => Status::Done,
+            "failed" => Status::Failed,
+            "cancelled" => Status::Cancelled,
+            _ => return None,
+        })
+    }
+
+    pub fn is_final(self) -> bool {
+        matches!(self, Status::Done | Status::Failed | Status::Cancelled)
+    }
+
+    pub const ALL: [Status; 5] = [
+        Status::Queued,
+        Status::Running,
+        Status::Done,
+        Status::Failed,
+        Status::Cancelled,
+    ];
+}
+
+/// A job as stored.
+#[derive(Clone, Debug)]
+pub struct JobRow {
+    pub id: i64,
+    pub user_id: UserId,
+    pub public: bool,
+    pub status: Status,
+    /// A built-in scene's name, or the name given in an uploaded scene.
+    pub scene_name: Option<String>,
+    /// The uploaded scene (None for built-in scenes, which are read from scenes/).
+    pub scene_json: Option<String>,
+    /// The job's parameters as submitted (validated).
+    pub params_json: String,
+    pub created: f64,
+    pub started: Option<f64>,
+    pub finished: Option<f64>,
+    pub error: Option<String>,
+    pub stats_json: Option<String>,
+}
+
+pub fn now() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+pub struct Store {
+    conn: Mutex<Connection>,
+}
+
+const SCHEMA: &str = "
+CREATE TABLE IF NOT EXISTS users (
+    id INTEGER PRIMARY KEY,
+    name TEXT NOT NULL UNIQUE,
+    token_hash TEXT NOT NULL UNIQUE,
+    admin INTEGER NOT NULL,
+    created REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS jobs (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    user_id INTEGER NOT NULL REFERENCES users(id),
+    public INTEGER NOT NULL,
+    status TEXT NOT NULL,
+    scene_name TEXT,
+    scene_json TEXT,
+    params_json TEXT NOT NULL,
+    created REAL NOT NULL,
+    started REAL,
+    finished REAL,
+    error TEXT,
+    stats_json TEXT
+);
+";
+
+impl Store {
+    pub fn open(dir: &Path) -> rusqlite::Result<Store> {
+        let conn = Connection::open(dir.join("photonbox.sqlite3"))?;
+        conn.pragma_update(None, "journal_mode", "WAL")?;
+        conn.pragma_update(None, "synchronous", "FULL")?;
+        conn.pragma_update(None, "foreign_keys", "ON")?;
+        conn.busy_timeout(std::time::Duration::from_secs(5))?;
+        conn.execute_batch(SCHEMA)?;
+        Ok(Store {
+            conn: Mutex::new(conn),
+        })
+    }
+
+    fn conn(&self) -> std::sync::MutexGuard<'_, Connection> {
+        self.conn.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    pub fn user_count(&self) -> rusqlite::Result<i64> {
+        self.conn()
+            .query_row("SELECT COUNT(*) FROM users", [], |r| r.get(0))
+    }
+
+    /// Add a user; returns it and its token (the only time the token exists in clear).
+    pub fn add_user(&self, name: &str, admin: bool) -> rusqlite::Result<(User, String)> {
+        let token = new_token();
+        let conn = self.conn();
+        conn.execute(
+            "INSERT INTO users (name, token_hash, admin, created) VALUES (?1, ?2, ?3, ?4)",
+            params![name, token_hash(&token), admin, now()],
+        )?;
+        let user = User {
+            id: conn.last_insert_rowid(),
+            name: name.to_string(),
+            admin,
+        };
+        Ok((user, token))
+    }
+
+    pub fn user_by_token_hash(&self, hash: &str) -> rusqlite::Result<Option<User>> {
+        self.conn()
+            .query_row(
+                "SELECT id, name, admin FROM users WHERE token_hash = ?1",
+                [hash],
+                |r| {
+                    Ok(User {
+                        id: r.get(0)?,
+                        name: r.get(1)?,
+                        admin: r.get(2)?,
+                    })
+                },
+            )
+            .optional()
+    }
+
+    pub fn user_names(&self) -> rusqlite::Result<Vec<(UserId, String)>> {
+        let conn = self.conn();
+        let mut st = conn.prepare("SELECT id, name FROM users")?;
+        let rows = st.query_map([], |r| Ok((r.get(0)?, r.get(1)?)))?;
+        rows.collect()
+    }
+
+    /// Commit a new queued job; returns its id.
+    pub fn insert_job(&self, row: &JobRow) -> rusqlite::Result<i64> {
+        let conn = self.conn();
+        conn.execute(
+            "INSERT INTO jobs (user_id, public, status, scene_name, scene_json, params_json, created)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+            params![
+                row.user_id,
+                row.public,
+                row.status.as_str(),
+                row.scene_name,
+                row.scene_json,
+                row.params_json,
+                row.created
+            ],
+        )?;
+        Ok(conn.last_insert_rowid())
+    }
+
+    /// Write a job's state (status, times, error, stats).
+    pub fn update_job(&self, row: &JobRow) -> rusqlite::Result<()> {
+        self.conn().execute(
+            "UPDATE jobs SET status = ?2, started = ?3, finished = ?4, error = ?5, stats_json = ?6
+             WHERE id = ?1",
+            params![
+                row.id,
+                row.status.as_str(),
+                row.started,
+                row.finished,
+                row.error,
+                row.stats_json
+            ],
+        )?;
+        Ok(())
+    }
+
+    pub fn delete_job(&self, id: i64) -> rusqlite::Result<()> {
+        self.conn()
+            .execute("DELETE FROM jobs WHERE id = ?1", [id])?;
+        Ok(())
+    }
+
+    /// Every job, oldest first.
+    pub fn all_jobs(&self) -> rusqlite::Result<Vec<JobRow>> {
+        let conn = self.conn();
+        let mut st = conn.prepare(
+            "SELECT id, user_id, public, status, scene_name, scene_json, params_json, created,
+                    started, finished, error, stats_json FROM jobs ORDER BY id",
+        )?;
+        let rows = st.query_map([], |r| {
+            let status: String = r.get(3)?;
+            Ok(JobRow {
+                id: r.get(0)?,
+                user_id: r.get(1)?,
+                public: r.get(2)?,
+                status: Status::parse(&status).unwrap_or(Status::Failed),
+                scene_name: r.get(4)?,
+                scene_json: r.get(5)?,
+                params_json: r.get(6)?,
+                created: r.get(7)?,
+                started: r.get(8)?,
+                finished: r.get(9)?,
+                error: r.get(10)?,
+                stats_json: r.get(11)?,
+            })
+        })?;
+        rows.collect()
+    }
+}

@@ -1,0 +1,466 @@
+//! Integration tests of `photonbox serve`: each starts a real server on an ephemeral port
+//! with a temporary data folder and talks to it over HTTP.
+
+mod harness;
+
+use std::time::Instant;
+
+use harness::*;
+use serde_json::{Value, json};
+
+/// A job that renders in a fraction of a second.
+fn small(scene: &str) -> Value {
+    json!({
+        "scene_name": scene,
+        "params": {"width": 48, "height": 32, "photons": 20000, "caustic_photons": 20000,
+                   "spp": 1, "gather_rays": 0, "k": 20}
+    })
+}
+
+/// A job that takes many seconds (20M photons), for cancelling and fairness.
+fn long() -> Value {
+    json!({
+        "scene_name": "cornell_mirror_glass",
+        "params": {"width": 64, "height": 64, "photons": 20000000, "caustic_photons": 1000,
+                   "spp": 1, "gather_rays": 0}
+    })
+}
+
+fn decode_exr(bytes: &[u8]) -> image::Rgb32FImage {
+    image::load_from_memory_with_format(bytes, image::ImageFormat::OpenExr)
+        .unwrap()
+        .to_rgb32f()
+}
+
+#[test]
+fn submit_follow_events_and_fetch_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let id = submit(&s, &s.admin, small("cornell"));
+    let evs = follow_to_end(&s, &s.admin, id);
+    let names: Vec<&str> = evs.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(
+        names[0], "status",
+        "a client first gets the current state: {names:?}"
+    );
+    assert!(names.contains(&"progress"), "{names:?}");
+    assert!(names.contains(&"preview"), "{names:?}");
+    assert_eq!(*names.last().unwrap(), "done", "{names:?}");
+    // Progress never goes backwards.
+    let progress: Vec<f64> = evs
+        .iter()
+        .filter(|e| e.name == "progress")
+        .map(|e| e.data["progress"].as_f64().unwrap())
+        .collect();
+    assert!(progress.windows(2).all(|w| w[1] >= w[0]), "{progress:?}");
+    assert_eq!(*progress.last().unwrap(), 1.0);
+
+    let (status, job) = get(&s, &s.admin, &format!("/api/jobs/{id}"));
+    assert_eq!(status, 200);
+    assert_eq!(job["status"], "done");
+    assert_eq!(job["progress"], 1.0);
+    assert_eq!(job["stats"]["params"]["width"], 48);
+    assert!(job["stats"]["times"]["total"].as_f64().unwrap() > 0.0);
+    assert_eq!(job["stats"]["cache"]["photon_maps"], "miss");
+
+    let (status, png) = bytes(&s, &s.admin, &format!("/api/jobs/{id}/image.png"));
+    assert_eq!(status, 200);
+    let png = image::load_from_memory_with_format(&png, image::ImageFormat::Png).unwrap();
+    assert_eq!((png.width(), png.height()), (48, 32));
+    let (status, exr) = bytes(&s, &s.admin, &format!("/api/jobs/{id}/image.exr"));
+    assert_eq!(status, 200);
+    let exr = decode_exr(&exr);
+    assert_eq!((exr.width(), exr.height()), (48, 32));
+    assert!(exr.pixels().all(|p| p.0.iter().all(|c| c.is_finite())));
+    let mean: f32 = exr.pixels().map(|p| p.0[1]).sum::<f32>() / (48.0 * 32.0);
+    assert!(mean > 0.01, "the Cornell box is lit: mean green {mean}");
+
+    // Built-in scenes, health, metrics.
+    let (status, scenes) = get(&s, &s.admin, "/api/scenes");
+    assert_eq!(status, 200);
+    let names: Vec<&str> = scenes["scenes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x["name"].as_str().unwrap())
+        .collect();
+    assert!(
+        names.contains(&"cornell") && names.contains(&"knot"),
+        "{names:?}"
+    );
+    let (status, scene) = get(&s, &s.admin, "/api/scenes/cornell");
+    assert_eq!(
+        (status, scene["camera"]["width"].as_u64()),
+        (200, Some(384))
+    );
+    assert_eq!(get(&s, &s.admin, "/api/scenes/nope").0, 404);
+    let health = client().get(s.url("/healthz")).send().unwrap();
+    assert_eq!(health.status().as_u16(), 200);
+    let metrics = client()
+        .get(s.url("/metrics"))
+        .send()
+        .unwrap()
+        .text()
+        .unwrap();
+    assert!(
+        metrics.contains("photonbox_jobs{status=\"done\"} 1"),
+        "{metrics}"
+    );
+    assert!(
+        metrics.contains("photonbox_photon_map_cache_misses_total 1"),
+        "{metrics}"
+    );
+    assert!(
+        metrics.contains("route=\"/api/jobs\",status=\"202\"} 1"),
+        "{metrics}"
+    );
+}
+
+#[test]
+fn camera_only_change_reuses_the_photon_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let first = submit(&s, &s.admin, small("cornell_mirror_glass"));
+    assert_eq!(
+        follow_to_end(&s, &s.admin, first).last().unwrap().name,
+        "done"
+    );
+
+    // The same scene uploaded with another camera, resolution, k, spp and exposure.
+    let (_, mut scene) = get(&s, &s.admin, "/api/scenes/cornell_mirror_glass");
+    scene["camera"]["position"] = json!([0.3, 1.2, 3.5]);
+    scene["camera"]["fov"] = json!(45);
+    let body = json!({
+        "scene": scene,
+        "params": {"width": 40, "height": 40, "photons": 20000, "caustic_photons": 20000,
+                   "spp": 2, "gather_rays": 0, "k": 10, "exposure": 1.0}
+    });
+    let second = submit(&s, &s.admin, body);
+    assert_eq!(
+        follow_to_end(&s, &s.admin, second).last().unwrap().name,
+        "done"
+    );
+    // Different photon counts: new maps.
+    let mut third_body = small("cornell_mirror_glass");
+    third_body["params"]["photons"] = json!(30000);
+    let third = submit(&s, &s.admin, third_body);
+    assert_eq!(
+        follow_to_end(&s, &s.admin, third).last().unwrap().name,
+        "done"
+    );
+
+    let stats = |id: i64| get(&s, &s.admin, &format!("/api/jobs/{id}")).1["stats"].clone();
+    let (a, b, c) = (stats(first), stats(second), stats(third));
+    assert_eq!(a["cache"]["photon_maps"], "miss");
+    assert_eq!(a["photons"]["traced_by_this_job"], 40000);
+    assert_eq!(b["cache"]["photon_maps"], "hit", "{b}");
+    assert_eq!(
+        b["photons"]["traced_by_this_job"], 0,
+        "no photon was traced"
+    );
+    assert_eq!(b["times"]["photon_trace"], 0.0);
+    assert_eq!(b["times"]["build_maps"], 0.0);
+    assert_eq!(b["photons"]["global_stored"], a["photons"]["global_stored"]);
+    assert_eq!(b["params"]["width"], 40);
+    assert_eq!(c["cache"]["photon_maps"], "miss");
+    let metrics = client()
+        .get(s.url("/metrics"))
+        .send()
+        .unwrap()
+        .text()
+        .unwrap();
+    assert!(
+        metrics.contains("photonbox_photon_map_cache_hits_total 1"),
+        "{metrics}"
+    );
+    assert!(
+        metrics.contains("photonbox_photon_map_cache_misses_total 2"),
+        "{metrics}"
+    );
+}
+
+#[test]
+fn cancel_stops_a_running_render_and_a_queued_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let running = submit(&s, &s.admin, long());
+    let queued = submit(&s, &s.admin, small("cornell"));
+    wait_running(&s, &s.admin, running);
+    let (_, q) = get(&s, &s.admin, &format!("/api/jobs/{queued}"));
+    assert_eq!(q["status"], "queued", "one job per user at a time");
+    assert_eq!(q["queue_position"], 0);
+
+    let t0 = Instant::now();
+    let (status, v) = delete(&s, &s.admin, running);
+    let took = t0.elapsed().as_secs_f64();
+    assert_eq!(
+        (status, v["status"].as_str()),
+        (200, Some("cancelled")),
+        "{v}"
+    );
+    assert!(
+        took < 1.0,
+        "the render stopped within 1 s (took {took:.2} s)"
+    );
+    let evs = follow_to_end(&s, &s.admin, running);
+    assert_eq!(evs.last().unwrap().name, "cancelled");
+    assert_eq!(
+        bytes(&s, &s.admin, &format!("/api/jobs/{running}/image.png")).0,
+        404
+    );
+
+    // The queued job then runs; cancelling a finished job deletes it and its files.
+    assert_eq!(
+        follow_to_end(&s, &s.admin, queued).last().unwrap().name,
+        "done"
+    );
+    assert!(dir.path().join(format!("results/{queued}.png")).exists());
+    assert_eq!(delete(&s, &s.admin, queued).0, 204);
+    assert_eq!(get(&s, &s.admin, &format!("/api/jobs/{queued}")).0, 404);
+    assert!(!dir.path().join(format!("results/{queued}.png")).exists());
+    let third = submit(&s, &s.admin, long());
+    let fourth = submit(&s, &s.admin, small("cornell"));
+    let (status, v) = delete(&s, &s.admin, fourth);
+    assert_eq!((status, v["status"].as_str()), (200, Some("cancelled")));
+    delete(&s, &s.admin, third);
+}
+
+#[test]
+fn tokens_and_visibility() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let bob = s.add_user("bob");
+    let carol = s.add_user("carol");
+    assert_ne!(bob, carol);
+    assert!(
+        !std::fs::read_to_string(dir.path().join("photonbox.sqlite3"))
+            .unwrap_or_default()
+            .contains(&bob),
+        "tokens are stored hashed"
+    );
+
+    // No token, a malformed header, a wrong token: 401 with a JSON body.
+    let r = client().get(s.url("/api/jobs")).send().unwrap();
+    let (status, v) = json_of(r);
+    assert_eq!(status, 401);
+    assert_eq!(v["path"], "header.Authorization");
+    let r = client()
+        .get(s.url("/api/jobs"))
+        .header("Authorization", "Basic abc")
+        .send()
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 401);
+    assert_eq!(get(&s, "not-a-token", "/api/jobs").0, 401);
+    assert_eq!(get(&s, &bob, "/api/me").1["name"], "bob");
+
+    let mut public = small("cornell");
+    public["public"] = json!(true);
+    let bobs_private = submit(&s, &bob, small("cornell"));
+    let bobs_public = submit(&s, &bob, public);
+    let carols = submit(&s, &carol, small("cornell"));
+    for (tok, id) in [(&bob, bobs_private), (&bob, bobs_public), (&carol, carols)] {
+        follow_to_end(&s, tok, id);
+    }
+    let ids = |token: &str| -> Vec<i64> {
+        get(&s, token, "/api/jobs").1["jobs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|j| j["id"].as_i64().unwrap())
+            .collect()
+    };
+    // Newest first; carol sees her job and bob's public one, never his private one.
+    assert_eq!(ids(&carol), vec![carols, bobs_public]);
+    assert_eq!(ids(&bob), vec![bobs_public, bobs_private]);
+    assert_eq!(ids(&s.admin), vec![carols, bobs_public, bobs_private]);
+    let path = format!("/api/jobs/{bobs_private}");
+    assert_eq!(
+        get(&s, &carol, &path).0,
+        404,
+        "another user's private job does not exist"
+    );
+    assert_eq!(bytes(&s, &carol, &format!("{path}/image.png")).0, 404);
+    assert_eq!(bytes(&s, &carol, &format!("{path}/events")).0, 404);
+    assert_eq!(delete(&s, &carol, bobs_private).0, 404);
+    assert_eq!(get(&s, &carol, &format!("/api/jobs/{bobs_public}")).0, 200);
+    assert_eq!(
+        bytes(&s, &carol, &format!("/api/jobs/{bobs_public}/image.png")).0,
+        200
+    );
+    assert_eq!(
+        delete(&s, &carol, bobs_public).0,
+        403,
+        "public jobs are read-only"
+    );
+    // The admin sees and may delete everything.
+    assert_eq!(get(&s, &s.admin, &path).0, 200);
+    assert_eq!(delete(&s, &s.admin, bobs_private).0, 204);
+    assert_eq!(get(&s, &bob, &path).0, 404);
+}
+
+#[test]
+fn limits_and_bad_input_get_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        dir.path(),
+        &[
+            "--max-body",
+            "20000",
+            "--max-queued",
+            "2",
+            "--max-pixels",
+            "150000",
+            "--memory-mb",
+            "4096",
+        ],
+    );
+    let t = &s.admin;
+    let raw = |body: &str| {
+        json_of(
+            client()
+                .post(s.url("/api/jobs"))
+                .bearer_auth(t)
+                .header("content-type", "application/json")
+                .body(body.to_string())
+                .send()
+                .unwrap(),
+        )
+    };
+    let (status, v) = raw(&format!(
+        "{{\"scene_name\": \"cornell\", \"pad\": \"{}\"}}",
+        "x".repeat(30000)
+    ));
+    assert_eq!((status, v["path"].as_str()), (413, Some("body")), "{v}");
+    let (status, v) = raw("{\"scene_name\": \"cornell\"");
+    assert_eq!((status, v["path"].as_str()), (400, Some("body")), "{v}");
+    let cases = [
+        (
+            json!({"scene_name": "cornell", "params": {"width": 400, "height": 400}}),
+            "params.width",
+        ),
+        (
+            json!({"scene_name": "cornell", "params": {"k": "many"}}),
+            "params.k",
+        ),
+        (
+            json!({"scene_name": "cornell", "params": {"k": 0}}),
+            "params.k",
+        ),
+        (
+            json!({"scene_name": "cornell", "params": {"photns": 5}}),
+            "params.photns",
+        ),
+        (
+            json!({"scene_name": "cornell", "params": {"integrator": "magic"}}),
+            "params.integrator",
+        ),
+        (
+            json!({"scene_name": "cornell", "params": {"photons": 60000000}}),
+            "params.photons",
+        ),
+        (
+            json!({"scene_name": "cornell", "params": {"photons": 40000000}}),
+            "params",
+        ),
+        (json!({"scene_name": "nope"}), "scene_name"),
+        (json!({}), "scene"),
+        (json!({"scene_name": "cornell", "colour": 1}), "colour"),
+        (json!({"scene": {"camera": 5}}), "scene.camera"),
+    ];
+    for (body, path) in cases {
+        let (status, v) = post(&s, t, &body);
+        assert_eq!(status, 422, "{body} -> {v}");
+        assert_eq!(v["path"], path, "{body} -> {v}");
+        assert!(v["error"].as_str().is_some_and(|e| !e.is_empty()));
+    }
+    let (_, v) = post(
+        &s,
+        t,
+        &json!({"scene_name": "cornell", "params": {"photons": 40000000}}),
+    );
+    assert!(
+        v["error"].as_str().unwrap().contains("MiB"),
+        "the estimate is given: {v}"
+    );
+    let (_, mut scene) = get(&s, t, "/api/scenes/cornell");
+    scene["objects"][0]["corner"] = json!([0, "zero", 0]);
+    let (status, v) = post(&s, t, &json!({"scene": scene}));
+    assert_eq!(
+        (status, v["path"].as_str()),
+        (422, Some("scene.objects[0].corner[1]")),
+        "{v}"
+    );
+
+    // Two queued jobs per user at most: the third waiting one is refused with 429.
+    let long_job = json!({"scene_name": "cornell_mirror_glass",
+        "params": {"width": 64, "height": 64, "photons": 10000000, "caustic_photons": 1000, "spp": 1, "gather_rays": 0}});
+    let running = submit(&s, t, long_job.clone());
+    wait_running(&s, t, running);
+    let q1 = submit(&s, t, small("cornell"));
+    let q2 = submit(&s, t, small("cornell"));
+    let (status, v) = post(&s, t, &small("cornell"));
+    assert_eq!(
+        (status, v["path"].as_str()),
+        (429, Some("limits.max_queued_per_user")),
+        "{v}"
+    );
+    for id in [q1, q2, running] {
+        delete(&s, t, id);
+    }
+}
+
+#[test]
+fn nothing_is_lost_when_the_server_is_killed() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &["--max-running", "1"]);
+    let t = s.admin.clone();
+    let done = submit(&s, &t, small("cornell"));
+    follow_to_end(&s, &t, done);
+    let (_, png_before) = bytes(&s, &t, &format!("/api/jobs/{done}/image.png"));
+    let mut medium = small("cornell_mirror_glass");
+    medium["params"]["photons"] = json!(6000000);
+    let running = submit(&s, &t, medium);
+    let queued = submit(&s, &t, small("glass_orange"));
+    wait_running(&s, &t, running);
+    s.kill();
+
+    let s = Server::start(dir.path(), &["--max-running", "1"]);
+    assert_eq!(s.admin, t, "the admin token survives");
+    let (status, job) = get(&s, &t, &format!("/api/jobs/{done}"));
+    assert_eq!((status, job["status"].as_str()), (200, Some("done")));
+    assert_eq!(
+        bytes(&s, &t, &format!("/api/jobs/{done}/image.png")),
+        (200, png_before)
+    );
+    // The interrupted job runs again, and the queued one runs.
+    for id in [running, queued] {
+        let evs = follow_to_end(&s, &t, id);
+        assert_eq!(evs.last().unwrap().name, "done", "job {id}: {evs:?}");
+        assert_eq!(bytes(&s, &t, &format!("/api/jobs/{id}/image.exr")).0, 200);
+    }
+    let (_, list) = get(&s, &t, "/api/jobs");
+    assert_eq!(list["jobs"].as_array().unwrap().len(), 3);
+}
+
+#[test]
+fn a_small_job_is_not_stuck_behind_another_users_long_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let alice = s.add_user("alice");
+    let bob = s.add_user("bob");
+    let long_id = submit(&s, &alice, long());
+    wait_running(&s, &alice, long_id);
+    let t0 = Instant::now();
+    let mut quick = small("cornell");
+    quick["params"]["integrator"] = json!("raytrace");
+    let small_id = submit(&s, &bob, quick);
+    let evs = follow_to_end(&s, &bob, small_id);
+    let took = t0.elapsed().as_secs_f64();
+    assert_eq!(evs.last().unwrap().name, "done");
+    let (_, long_job) = get(&s, &alice, &format!("/api/jobs/{long_id}"));
+    assert_eq!(
+        long_job["status"], "running",
+        "bob's job finished ({took:.2} s) while alice's long one still runs"
+    );
+    delete(&s, &alice, long_id);
+}
