@@ -180,6 +180,7 @@ fn execute(
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(app.config.threads)
         .thread_name(move |i| format!("job-{id}-render-{i}"))
+        .start_handler(|_| lower_priority())
         .build()
         .map_err(|e| bad(format!("starting render threads: {e}")))?;
     let (out, outcome, key) = pool.install(|| -> Result<_, Failure> {
@@ -221,6 +222,16 @@ fn execute(
     stats["cache"] = json!({ "photon_maps": outcome.as_str(), "key": &key[..16] });
     stats["params"]["exposure"] = json!(params.exposure);
     Ok(stats)
+}
+
+/// Render threads run at a lower priority (nice 10) than the API's threads, so that the
+/// API answers in milliseconds while renders use every core.
+fn lower_priority() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: setpriority has no memory effects; on Linux, who = 0 is the calling thread.
+    unsafe {
+        libc::setpriority(libc::PRIO_PROCESS, 0, 10);
+    }
 }
 
 /// Write a file through a temporary name and a rename, so that a crash never leaves a

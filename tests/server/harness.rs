@@ -58,6 +58,17 @@ impl Server {
         self.child.wait().unwrap();
     }
 
+    /// SIGTERM, and wait for the process to exit: its status and how long that took.
+    pub fn terminate(mut self) -> (std::process::ExitStatus, f64) {
+        let t0 = std::time::Instant::now();
+        // SAFETY: sending a signal to our own child process.
+        unsafe {
+            libc::kill(self.child.id() as i32, libc::SIGTERM);
+        }
+        let status = self.child.wait().unwrap();
+        (status, t0.elapsed().as_secs_f64())
+    }
+
     pub fn url(&self, path: &str) -> String {
         format!("{}{path}", self.base)
     }

@@ -464,3 +464,39 @@ fn a_small_job_is_not_stuck_behind_another_users_long_one() {
     );
     delete(&s, &alice, long_id);
 }
+
+#[test]
+fn sigterm_ends_streams_and_requeues_the_running_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let t = s.admin.clone();
+    let id = submit(&s, &t, long());
+    wait_running(&s, &t, id);
+    // Connected (headers received) before the signal; read to the end in a thread: the
+    // server must close the stream when it shuts down.
+    let events = client()
+        .get(s.url(&format!("/api/jobs/{id}/events")))
+        .bearer_auth(&t)
+        .send()
+        .unwrap();
+    assert_eq!(events.status().as_u16(), 200);
+    let stream = std::thread::spawn(move || {
+        let text = events.text().unwrap_or_default();
+        text.lines().filter(|l| l.starts_with("event: ")).count()
+    });
+    let (status, took) = s.terminate();
+    assert!(status.success(), "clean exit: {status:?}");
+    assert!(took < 5.0, "exited within seconds (took {took:.2} s)");
+    assert!(
+        stream.join().unwrap() >= 1,
+        "the event stream ended cleanly"
+    );
+
+    let s = Server::start(dir.path(), &[]);
+    let (_, job) = get(&s, &t, &format!("/api/jobs/{id}"));
+    assert!(
+        job["status"] == "queued" || job["status"] == "running",
+        "the interrupted job runs again: {job}"
+    );
+    delete(&s, &t, id);
+}

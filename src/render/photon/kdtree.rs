@@ -34,6 +34,9 @@ pub trait KdItem: Copy + Send + Sync {
 /// Ranges of at most this many items are leaves.
 const LEAF: usize = 8;
 
+/// Nodes of at least this many items poll for cancellation (a few ms of work each).
+const CANCEL_CHECK_MIN: usize = 64 * 1024;
+
 /// Below this many items, subtrees are built on the calling thread.
 const PARALLEL_BUILD_MIN: usize = 16 * 1024;
 
@@ -83,7 +86,19 @@ fn halves(lo: usize, hi: usize) -> usize {
 impl<T: KdItem> KdTree<T> {
     /// Balance `items` into a tree. Deterministic: the result depends only on the input
     /// order, not on the thread count.
-    pub fn build(mut items: Vec<T>) -> KdTree<T> {
+    pub fn build(items: Vec<T>) -> KdTree<T> {
+        match Self::build_cancellable(items, &|| false) {
+            Some(t) => t,
+            None => unreachable!("never cancelled"),
+        }
+    }
+
+    /// [`KdTree::build`] that polls `cancelled` at every large node and gives up (None) once
+    /// it says so: balancing tens of millions of photons takes seconds.
+    pub fn build_cancellable(
+        mut items: Vec<T>,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Option<KdTree<T>> {
         let mut lo = Vec3A::splat(f32::INFINITY);
         let mut hi = Vec3A::splat(f32::NEG_INFINITY);
         for it in &items {
@@ -98,17 +113,20 @@ impl<T: KdItem> KdTree<T> {
             f32::INFINITY
         };
         let mut nodes = Vec::new();
-        balance(&mut items, 0, &mut nodes);
+        balance(&mut items, 0, &mut nodes, cancelled);
+        if cancelled() {
+            return None;
+        }
         let len = nodes.iter().map(|n| n.0 + 1).max().unwrap_or(0);
         let mut splits = vec![Split::default(); len];
         for (i, s) in nodes {
             splits[i] = s;
         }
-        KdTree {
+        Some(KdTree {
             items,
             splits,
             density_hint,
-        }
+        })
     }
 
     pub fn items(&self) -> &[T] {
@@ -318,8 +336,13 @@ impl<T: Copy> Stack<T> {
 /// halves in parallel. (Choosing the axis from the node's cell instead, which spares the
 /// pass over the items, was measured: builds 4% faster, queries 25% slower.) Collects (node
 /// index, split) pairs, scattered into the heap-ordered array afterwards.
-fn balance<T: KdItem>(items: &mut [T], node: usize, out: &mut Vec<(usize, Split)>) {
-    if items.len() <= LEAF {
+fn balance<T: KdItem>(
+    items: &mut [T],
+    node: usize,
+    out: &mut Vec<(usize, Split)>,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) {
+    if items.len() <= LEAF || (items.len() >= CANCEL_CHECK_MIN && cancelled()) {
         return;
     }
     let mut lo = Vec3A::splat(f32::INFINITY);
@@ -350,13 +373,13 @@ fn balance<T: KdItem>(items: &mut [T], node: usize, out: &mut Vec<(usize, Split)
     if left.len() >= PARALLEL_BUILD_MIN {
         let mut right_out = Vec::new();
         rayon::join(
-            || balance(left, 2 * node + 1, out),
-            || balance(right, 2 * node + 2, &mut right_out),
+            || balance(left, 2 * node + 1, out, cancelled),
+            || balance(right, 2 * node + 2, &mut right_out, cancelled),
         );
         out.extend(right_out);
     } else {
-        balance(left, 2 * node + 1, out);
-        balance(right, 2 * node + 2, out);
+        balance(left, 2 * node + 1, out, cancelled);
+        balance(right, 2 * node + 2, out, cancelled);
     }
 }
 

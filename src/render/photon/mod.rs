@@ -19,6 +19,7 @@ pub use trace::{PhotonParams, PhotonStore, TraceOutput, build_photon_maps, trace
 
 use glam::Vec3A;
 
+use crate::render::control::{Cancelled, Control};
 use crate::render::math::{Rgb, round_to_i32};
 
 /// How a photon reached the surface it is stored on; estimates pick classes so that no
@@ -174,6 +175,22 @@ impl PhotonMap {
             emitted,
             unit,
         }
+    }
+
+    /// [`PhotonMap::new`], giving up if `control` is cancelled while the tree is balanced.
+    pub fn build(
+        photons: Vec<Photon>,
+        emitted: u64,
+        unit: f32,
+        control: &Control,
+    ) -> Result<PhotonMap, Cancelled> {
+        let tree =
+            KdTree::build_cancellable(photons, &|| control.check().is_err()).ok_or(Cancelled)?;
+        Ok(PhotonMap {
+            tree,
+            emitted,
+            unit,
+        })
     }
 
     /// A photon's flux in watts.

@@ -290,9 +290,13 @@ pub fn build_photon_maps(
     control.check()?;
     let t1 = Instant::now();
     let tracker = control.tracker(Phase::BuildMaps, 2);
-    let make =
-        |t: TraceOutput| (t.emitted > 0).then(|| PhotonMap::new(t.photons, t.emitted, t.unit));
+    let make = |t: TraceOutput| {
+        (t.emitted > 0)
+            .then(|| PhotonMap::build(t.photons, t.emitted, t.unit, control))
+            .transpose()
+    };
     let (global, caustic) = rayon::join(|| make(global), || make(caustic));
+    let (global, caustic) = (global?, caustic?);
     tracker.finish();
     Ok(PhotonMaps {
         global,
