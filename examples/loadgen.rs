@@ -25,6 +25,11 @@ struct Args {
     server_bin: String,
 }
 
+async fn get_json(client: &reqwest::Client, url: &str, auth: &str) -> Value {
+    let r = client.get(url).header("Authorization", auth).send().await;
+    r.unwrap().json().await.unwrap()
+}
+
 fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * q).round() as usize]
 }
@@ -64,16 +69,7 @@ async fn main() {
     let id = job["id"].as_i64().unwrap();
     let url = format!("{base}/api/jobs/{id}");
     loop {
-        let v: Value = client
-            .get(&url)
-            .header("Authorization", &auth)
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        if v["status"] == "running" {
+        if get_json(&client, &url, &auth).await["status"] == "running" {
             break;
         }
         tokio::time::sleep(Duration::from_millis(50)).await;
@@ -112,15 +108,7 @@ async fn main() {
         all.extend(l);
         errors += e;
     }
-    let v: Value = client
-        .get(url.as_str())
-        .header("Authorization", &auth)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let v = get_json(&client, &url, &auth).await;
     let still = v["status"].clone();
     let progress = v["progress"].clone();
     all.sort_by(f64::total_cmp);

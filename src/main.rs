@@ -130,30 +130,33 @@ struct ServeArgs {
     #[arg(long, default_value_t = 1024)]
     cache_mb: u64,
     /// Memory budget of all running renders together (MiB); larger jobs are refused.
-    #[arg(long, default_value_t = 8192)]
+    #[arg(long, default_value_t = LIMITS.memory_bytes >> 20)]
     memory_mb: u64,
     /// Largest request body (bytes).
-    #[arg(long, default_value_t = 16 << 20)]
+    #[arg(long, default_value_t = LIMITS.body_bytes)]
     max_body: usize,
     /// Largest width*height.
-    #[arg(long, default_value_t = 4096 * 4096)]
+    #[arg(long, default_value_t = LIMITS.max_pixels)]
     max_pixels: u64,
     /// Most photons per map.
-    #[arg(long, default_value_t = 50_000_000)]
+    #[arg(long, default_value_t = LIMITS.max_photons)]
     max_photons: u64,
     /// Largest k.
-    #[arg(long, default_value_t = 1000)]
+    #[arg(long, default_value_t = LIMITS.max_k)]
     max_k: usize,
     /// Most progressive passes.
-    #[arg(long, default_value_t = 100_000)]
+    #[arg(long, default_value_t = LIMITS.max_iterations)]
     max_iterations: u32,
     /// Most triangles per scene.
-    #[arg(long, default_value_t = 2_000_000)]
+    #[arg(long, default_value_t = LIMITS.max_triangles)]
     max_triangles: usize,
     /// Most queued jobs per user (more: 429).
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = LIMITS.max_queued_per_user)]
     max_queued: usize,
 }
+
+/// The server's default limits, shown by `serve --help`.
+const LIMITS: photonbox::server::Limits = photonbox::server::Limits::DEFAULT;
 
 /// Exit codes: 0 success, 1 failure while rendering or writing, 2 bad input.
 const EXIT_BAD_INPUT: u8 = 2;

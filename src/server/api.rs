@@ -28,8 +28,14 @@ pub fn router(app: AppRef) -> Router {
     Router::new()
         .route("/api/jobs", get(list_jobs).post(submit_job))
         .route("/api/jobs/{id}", get(get_job).delete(delete_job))
-        .route("/api/jobs/{id}/image.png", get(image_png))
-        .route("/api/jobs/{id}/image.exr", get(image_exr))
+        .route(
+            "/api/jobs/{id}/image.png",
+            get(|s: State<AppRef>, h: HeaderMap, id: Path<String>| image(s, h, id, "png")),
+        )
+        .route(
+            "/api/jobs/{id}/image.exr",
+            get(|s: State<AppRef>, h: HeaderMap, id: Path<String>| image(s, h, id, "exr")),
+        )
         .route("/api/jobs/{id}/events", get(job_events))
         .route("/api/scenes", get(list_scenes))
         .route("/api/scenes/{name}", get(get_scene))
@@ -78,18 +84,20 @@ fn visible_job(app: &AppRef, user: &User, id: &str) -> Result<(JobRow, Snapshot)
     }
 }
 
-fn job_json(app: &AppRef, user: &User, row: &JobRow, snap: &Snapshot) -> Value {
+/// A job as the API shows it; `queue_position` as the scheduler reports it (for a queued job).
+fn job_json(
+    app: &AppRef,
+    user: &User,
+    row: &JobRow,
+    snap: &Snapshot,
+    queue_position: Option<usize>,
+) -> Value {
     let params: Value = serde_json::from_str(&row.params_json).unwrap_or(Value::Null);
     let stats: Value = row
         .stats_json
         .as_deref()
         .and_then(|s| serde_json::from_str(s).ok())
         .unwrap_or(Value::Null);
-    let queue_position = if row.status == Status::Queued {
-        app.scheduler.queue_position(row.id)
-    } else {
-        None
-    };
     let base = format!("/api/jobs/{}", row.id);
     json!({
         "id": row.id,
@@ -126,11 +134,12 @@ async fn me(State(app): State<AppRef>, headers: HeaderMap) -> Result<Json<Value>
 
 async fn list_jobs(State(app): State<AppRef>, headers: HeaderMap) -> Result<Json<Value>, ApiError> {
     let user = authenticate(&app, &headers)?;
+    let positions = app.scheduler.queue_positions();
     let jobs: Vec<Value> = app
         .jobs
         .list(|r| visible(&user, r))
         .iter()
-        .map(|(row, snap)| job_json(&app, &user, row, snap))
+        .map(|(row, snap)| job_json(&app, &user, row, snap, positions.get(&row.id).copied()))
         .collect();
     Ok(Json(json!({ "jobs": jobs })))
 }
@@ -142,7 +151,8 @@ async fn get_job(
 ) -> Result<Json<Value>, ApiError> {
     let user = authenticate(&app, &headers)?;
     let (row, snap) = visible_job(&app, &user, &id)?;
-    Ok(Json(job_json(&app, &user, &row, &snap)))
+    let position = app.scheduler.queue_position(row.id);
+    Ok(Json(job_json(&app, &user, &row, &snap, position)))
 }
 
 async fn submit_job(
@@ -201,6 +211,7 @@ async fn submit_job(
         status: Status::Queued,
         scene_name: scene.name.clone(),
         scene_json: req.scene_name.is_none().then(|| scene.json.to_string()),
+        memory_bytes: needs.memory_bytes,
         params_json: serde_json::to_string(&params_json)
             .map_err(|e| ApiError::internal(e.to_string()))?,
         created: now(),
@@ -250,13 +261,10 @@ async fn delete_job(
         return Ok(StatusCode::NO_CONTENT.into_response());
     }
     if app.scheduler.dequeue(id) {
-        let row = app.jobs.update(id, |r| {
+        app.commit_job(id, |r| {
             r.status = Status::Cancelled;
             r.finished = Some(now());
         });
-        if let Some(row) = row {
-            app.store.update_job(&row)?;
-        }
         return Ok(Json(json!({ "id": id, "status": "cancelled" })).into_response());
     }
     if app.scheduler.cancel_running(id) {
@@ -277,40 +285,29 @@ async fn delete_job(
     ))
 }
 
+/// A job's final image (`ext`: png or exr).
 async fn image(
-    app: AppRef,
+    State(app): State<AppRef>,
     headers: HeaderMap,
-    id: String,
-    ext: &str,
-    mime: &str,
+    Path(id): Path<String>,
+    ext: &'static str,
 ) -> Result<Response, ApiError> {
+    let mime = if ext == "png" {
+        "image/png"
+    } else {
+        "image/x-exr"
+    };
     let user = authenticate(&app, &headers)?;
     let (row, _) = visible_job(&app, &user, &id)?;
     let path = result_path(&app.config.data, row.id, ext);
     match tokio::fs::read(&path).await {
-        Ok(bytes) => Ok(([(header::CONTENT_TYPE, mime.to_string())], bytes).into_response()),
+        Ok(bytes) => Ok(([(header::CONTENT_TYPE, mime)], bytes).into_response()),
         Err(_) => Err(ApiError::new(
             StatusCode::NOT_FOUND,
             None,
             format!("no image yet: the job is {}", row.status.as_str()),
         )),
     }
-}
-
-async fn image_png(
-    State(app): State<AppRef>,
-    headers: HeaderMap,
-    Path(id): Path<String>,
-) -> Result<Response, ApiError> {
-    image(app, headers, id, "png", "image/png").await
-}
-
-async fn image_exr(
-    State(app): State<AppRef>,
-    headers: HeaderMap,
-    Path(id): Path<String>,
-) -> Result<Response, ApiError> {
-    image(app, headers, id, "exr", "image/x-exr").await
 }
 
 /// SSE: `status`, `progress`, `preview`, then one final `done|failed|cancelled`. A client

@@ -27,9 +27,14 @@ pub fn new_token() -> String {
     hex(&b)
 }
 
+/// SHA-256 in hex: what the store keeps of a token, and the photon-map cache's keys.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
 /// What the store keeps of a token.
 pub fn token_hash(token: &str) -> String {
-    hex(&Sha256::digest(token.as_bytes()))
+    sha256_hex(token.as_bytes())
 }
 
 /// The bearer token of a request, if it carries one.

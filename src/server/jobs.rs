@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
-use sha2::{Digest, Sha256};
 
 use super::error::ApiError;
 use crate::render::photon::PhotonParams;
@@ -164,18 +163,22 @@ pub struct Limits {
     pub memory_bytes: u64,
 }
 
+impl Limits {
+    pub const DEFAULT: Limits = Limits {
+        body_bytes: 16 << 20,
+        max_pixels: 4096 * 4096,
+        max_photons: 50_000_000,
+        max_k: 1000,
+        max_iterations: 100_000,
+        max_triangles: 2_000_000,
+        max_queued_per_user: 32,
+        memory_bytes: 8 << 30,
+    };
+}
+
 impl Default for Limits {
     fn default() -> Limits {
-        Limits {
-            body_bytes: 16 << 20,
-            max_pixels: 4096 * 4096,
-            max_photons: 50_000_000,
-            max_k: 1000,
-            max_iterations: 100_000,
-            max_triangles: 2_000_000,
-            max_queued_per_user: 32,
-            memory_bytes: 8 << 30,
-        }
+        Limits::DEFAULT
     }
 }
 
@@ -388,10 +391,7 @@ pub fn cache_key(scene_json: &Value, photon_params: &PhotonParams) -> String {
         scene,
         photon_params
     );
-    Sha256::digest(text.as_bytes())
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
+    super::auth::sha256_hex(text.as_bytes())
 }
 
 /// Where a finished job's image lives.

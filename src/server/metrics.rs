@@ -49,6 +49,14 @@ pub async fn track(State(app): State<AppRef>, req: Request, next: Next) -> Respo
     resp
 }
 
+/// One metric family with a single unlabelled sample.
+fn family(s: &mut String, name: &str, kind: &str, help: &str, value: impl std::fmt::Display) {
+    let _ = writeln!(
+        s,
+        "# HELP {name} {help}\n# TYPE {name} {kind}\n{name} {value}"
+    );
+}
+
 pub fn render(app: &super::App) -> String {
     let mut s = String::new();
     let _ = writeln!(
@@ -58,47 +66,53 @@ pub fn render(app: &super::App) -> String {
     for (status, n) in app.jobs.count_by_status() {
         let _ = writeln!(s, "photonbox_jobs{{status=\"{status}\"}} {n}");
     }
-    let _ = writeln!(
-        s,
-        "# HELP photonbox_queue_depth Jobs waiting to start.\n# TYPE photonbox_queue_depth gauge\nphotonbox_queue_depth {}",
-        app.scheduler.queue_depth()
+    family(
+        &mut s,
+        "photonbox_queue_depth",
+        "gauge",
+        "Jobs waiting to start.",
+        app.scheduler.queue_depth(),
     );
     let secs = *app
         .metrics
         .render_seconds
         .lock()
         .unwrap_or_else(|e| e.into_inner());
-    let _ = writeln!(
-        s,
-        "# HELP photonbox_render_seconds_total Wall-clock seconds spent running jobs.\n# TYPE photonbox_render_seconds_total counter\nphotonbox_render_seconds_total {secs}"
+    family(
+        &mut s,
+        "photonbox_render_seconds_total",
+        "counter",
+        "Wall-clock seconds spent running jobs.",
+        secs,
     );
     let c = &app.cache;
-    let _ = writeln!(
-        s,
-        "# HELP photonbox_photon_map_cache_hits_total Jobs that reused cached photon maps.\n# TYPE photonbox_photon_map_cache_hits_total counter\nphotonbox_photon_map_cache_hits_total {}",
-        c.hits.load(Ordering::Relaxed)
+    family(
+        &mut s,
+        "photonbox_photon_map_cache_hits_total",
+        "counter",
+        "Jobs that reused cached photon maps.",
+        c.hits.load(Ordering::Relaxed),
     );
-    let _ = writeln!(
-        s,
-        "# HELP photonbox_photon_map_cache_misses_total Jobs that traced their photon maps.\n# TYPE photonbox_photon_map_cache_misses_total counter\nphotonbox_photon_map_cache_misses_total {}",
-        c.misses.load(Ordering::Relaxed)
+    family(
+        &mut s,
+        "photonbox_photon_map_cache_misses_total",
+        "counter",
+        "Jobs that traced their photon maps.",
+        c.misses.load(Ordering::Relaxed),
     );
-    let _ = writeln!(
-        s,
-        "# HELP photonbox_photon_map_cache_bytes Bytes of photon maps held by the cache.\n# TYPE photonbox_photon_map_cache_bytes gauge\nphotonbox_photon_map_cache_bytes {}",
-        c.bytes()
+    family(
+        &mut s,
+        "photonbox_photon_map_cache_bytes",
+        "gauge",
+        "Bytes of photon maps held by the cache.",
+        c.bytes(),
     );
     let _ = writeln!(
         s,
         "# HELP photonbox_http_requests_total HTTP requests by method, route and status.\n# TYPE photonbox_http_requests_total counter"
     );
-    for ((method, route, status), n) in app
-        .metrics
-        .http
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .iter()
-    {
+    let http = app.metrics.http.lock().unwrap_or_else(|e| e.into_inner());
+    for ((method, route, status), n) in http.iter() {
         let _ = writeln!(
             s,
             "photonbox_http_requests_total{{method=\"{method}\",route=\"{route}\",status=\"{status}\"}} {n}"

@@ -28,11 +28,11 @@ pub use jobs::Limits;
 
 use auth::User;
 use cache::MapCache;
-use jobs::{JobNeeds, ParamsJson, SceneCatalog, resolve_scene};
+use jobs::SceneCatalog;
 use metrics::Metrics;
 use scheduler::Scheduler;
 use state::Jobs;
-use store::{Status, Store};
+use store::{JobRow, Status, Store};
 
 /// Everything `photonbox serve` can be told.
 #[derive(Clone, Debug)]
@@ -147,34 +147,26 @@ impl App {
                 row.started = None;
                 self.store.update_job(&row)?;
             }
-            let queued = row.status == Status::Queued;
-            let (id, user) = (row.id, row.user_id);
-            let memory = if queued { self.memory_of(&row) } else { 0 };
+            let queued = (row.status == Status::Queued).then_some((row.id, row.user_id));
+            let memory = row.memory_bytes;
             self.jobs.insert(row);
-            if queued {
+            if let Some((id, user)) = queued {
                 self.scheduler.enqueue(id, user, memory);
             }
         }
         Ok(())
     }
 
-    /// A stored job's memory estimate (0 if it no longer parses: it will fail when run).
-    fn memory_of(&self, row: &store::JobRow) -> u64 {
-        let params = serde_json::from_str::<ParamsJson>(&row.params_json)
-            .ok()
-            .and_then(|p| p.to_params().ok());
-        let scene = row
-            .scene_json
-            .as_deref()
-            .and_then(|t| serde_json::from_str(t).ok());
-        let name = row
-            .scene_name
-            .as_deref()
-            .filter(|_| row.scene_json.is_none());
-        match (params, resolve_scene(&self.catalog, scene, name)) {
-            (Some(p), Ok(s)) => JobNeeds::estimate(&s.desc, &p.render).memory_bytes,
-            _ => 0,
+    /// Change a job's state: written to the store first, then published to pollers and
+    /// event streams, so nothing is seen that a crash could take back. None if the job is
+    /// gone.
+    fn commit_job(&self, id: i64, f: impl FnOnce(&mut JobRow)) -> Option<JobRow> {
+        let mut row = self.jobs.row(id)?;
+        f(&mut row);
+        if let Err(e) = self.store.update_job(&row) {
+            tracing::error!("job {id}: store: {e}");
         }
+        self.jobs.publish(row.clone()).then_some(row)
     }
 
     fn user_name(&self, id: i64) -> String {

@@ -32,16 +32,13 @@ impl From<Cancelled> for Failure {
 }
 
 pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
-    let Some(row) = app.jobs.update(id, |r| {
+    let Some(row) = app.commit_job(id, |r| {
         r.status = Status::Running;
         r.started = Some(now());
         r.error = None;
     }) else {
         return; // deleted meanwhile
     };
-    if let Err(e) = app.store.update_job(&row) {
-        tracing::error!("job {id}: store: {e}");
-    }
     let t0 = Instant::now();
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         execute(
@@ -66,7 +63,7 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
     };
     app.metrics.add_render_seconds(t0.elapsed().as_secs_f64());
     let requeue = matches!(result, Err(Failure::Cancelled)) && app.scheduler.is_stopping();
-    let updated = app.jobs.update(id, |r| match &result {
+    app.commit_job(id, |r| match &result {
         Ok(stats) => {
             r.status = Status::Done;
             r.finished = Some(now());
@@ -86,11 +83,6 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
             r.error = Some(e.clone());
         }
     });
-    if let Some(row) = updated
-        && let Err(e) = app.store.update_job(&row)
-    {
-        tracing::error!("job {id}: store: {e}");
-    }
 }
 
 /// Relative cost of each phase, for one progress fraction over the whole job.

@@ -86,28 +86,41 @@ impl Scheduler {
         }
     }
 
-    /// The order queued jobs would start in (round-robin over users from the last served).
-    fn start_order(st: &State) -> Vec<i64> {
-        let mut users: Vec<UserId> = st.queues.keys().copied().collect();
-        if let Some(last) = st.last_user {
+    /// `users` (sorted) in turn order: those after the last one served first.
+    fn in_turn(mut users: Vec<UserId>, last: Option<UserId>) -> Vec<UserId> {
+        if let Some(last) = last {
             let split = users.partition_point(|&u| u <= last);
             users.rotate_left(split);
         }
+        users
+    }
+
+    /// The order queued jobs would start in (round-robin over users from the last served).
+    fn start_order(st: &State) -> Vec<i64> {
+        let users = Self::in_turn(st.queues.keys().copied().collect(), st.last_user);
         let mut out = Vec::new();
-        let mut round = 0;
-        loop {
-            let mut any = false;
-            for u in &users {
-                if let Some(&(id, _)) = st.queues[u].get(round) {
-                    out.push(id);
-                    any = true;
-                }
+        for round in 0.. {
+            let before = out.len();
+            out.extend(
+                users
+                    .iter()
+                    .filter_map(|u| st.queues[u].get(round).map(|j| j.0)),
+            );
+            if out.len() == before {
+                break;
             }
-            if !any {
-                return out;
-            }
-            round += 1;
         }
+        out
+    }
+
+    /// Positions (0-based) of the queued jobs in the start order.
+    pub fn queue_positions(&self) -> HashMap<i64, usize> {
+        let order = Self::start_order(&self.lock());
+        order
+            .into_iter()
+            .enumerate()
+            .map(|(i, id)| (id, i))
+            .collect()
     }
 
     /// 0-based position of a queued job in the start order.
@@ -127,17 +140,13 @@ impl Scheduler {
             return None;
         }
         let busy: Vec<UserId> = st.running.values().map(|r| r.user).collect();
-        let mut users: Vec<UserId> = st
+        let waiting = st
             .queues
             .iter()
             .filter(|(u, q)| !q.is_empty() && !busy.contains(u))
             .map(|(u, _)| *u)
             .collect();
-        if let Some(last) = st.last_user {
-            let split = users.partition_point(|&u| u <= last);
-            users.rotate_left(split);
-        }
-        let user = *users.first()?;
+        let user = *Self::in_turn(waiting, st.last_user).first()?;
         let &(id, memory) = st.queues[&user].front()?;
         // The first in line waits for memory rather than being overtaken (no starvation).
         if !st.running.is_empty() && st.memory_in_use + memory > self.memory_budget {

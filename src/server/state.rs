@@ -98,12 +98,15 @@ impl Jobs {
             .collect()
     }
 
-    /// Change a job's row (the caller writes it to the store) and republish its status.
-    pub fn update(&self, id: i64, f: impl FnOnce(&mut JobRow)) -> Option<JobRow> {
+    /// Replace a job's row with one already committed to the store, and publish its status
+    /// (see `App::commit_job`). False if the job is gone.
+    pub fn publish(&self, row: JobRow) -> bool {
         let mut map = self.lock();
-        let e = map.get_mut(&id)?;
-        f(&mut e.row);
-        let row = e.row.clone();
+        let Some(e) = map.get_mut(&row.id) else {
+            return false;
+        };
+        e.row = row;
+        let row = &e.row;
         e.live.send_modify(|s| {
             s.status = row.status;
             s.error = row.error.clone();
@@ -120,7 +123,7 @@ impl Jobs {
                 s.eta_seconds = None;
             }
         });
-        Some(row)
+        true
     }
 
     pub fn count_by_status(&self) -> BTreeMap<&'static str, u64> {

@@ -69,6 +69,9 @@ pub struct JobRow {
     pub scene_json: Option<String>,
     /// The job's parameters as submitted (validated).
     pub params_json: String,
+    /// Estimated peak memory of the render (`jobs::JobNeeds`), kept so that a restart can
+    /// queue the job without parsing its scene again.
+    pub memory_bytes: u64,
     pub created: f64,
     pub started: Option<f64>,
     pub finished: Option<f64>,
@@ -102,6 +105,7 @@ CREATE TABLE IF NOT EXISTS jobs (
     scene_name TEXT,
     scene_json TEXT,
     params_json TEXT NOT NULL,
+    memory_bytes INTEGER NOT NULL,
     created REAL NOT NULL,
     started REAL,
     finished REAL,
@@ -175,8 +179,9 @@ impl Store {
     pub fn insert_job(&self, row: &JobRow) -> rusqlite::Result<i64> {
         let conn = self.conn();
         conn.execute(
-            "INSERT INTO jobs (user_id, public, status, scene_name, scene_json, params_json, created)
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+            "INSERT INTO jobs (user_id, public, status, scene_name, scene_json, params_json,
+                               memory_bytes, created)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
             params![
                 row.user_id,
                 row.public,
@@ -184,6 +189,7 @@ impl Store {
                 row.scene_name,
                 row.scene_json,
                 row.params_json,
+                row.memory_bytes as i64,
                 row.created
             ],
         )?;
@@ -218,7 +224,7 @@ impl Store {
         let conn = self.conn();
         let mut st = conn.prepare(
             "SELECT id, user_id, public, status, scene_name, scene_json, params_json, created,
-                    started, finished, error, stats_json FROM jobs ORDER BY id",
+                    started, finished, error, stats_json, memory_bytes FROM jobs ORDER BY id",
         )?;
         let rows = st.query_map([], |r| {
             let status: String = r.get(3)?;
@@ -235,6 +241,7 @@ impl Store {
                 finished: r.get(9)?,
                 error: r.get(10)?,
                 stats_json: r.get(11)?,
+                memory_bytes: r.get::<_, i64>(12)?.max(0) as u64,
             })
         })?;
         rows.collect()

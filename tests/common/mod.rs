@@ -40,22 +40,19 @@ pub fn rel(a: f64, b: f64) -> f64 {
 pub fn transform_scene(json: &str, s: f64, t: [f64; 3]) -> String {
     use serde_json::{Value, json};
     let mut v: Value = serde_json::from_str(json).unwrap();
-    let point = |x: &Value| -> Value {
-        let a: Vec<f64> = x
-            .as_array()
+    let coords = |x: &Value| -> Vec<f64> {
+        x.as_array()
             .unwrap()
             .iter()
             .map(|c| c.as_f64().unwrap())
-            .collect();
+            .collect()
+    };
+    let point = |x: &Value| -> Value {
+        let a = coords(x);
         json!([a[0] * s + t[0], a[1] * s + t[1], a[2] * s + t[2]])
     };
     let vector = |x: &Value| -> Value {
-        let a: Vec<f64> = x
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|c| c.as_f64().unwrap())
-            .collect();
+        let a = coords(x);
         json!([a[0] * s, a[1] * s, a[2] * s])
     };
     for key in ["position", "look_at"] {

@@ -333,35 +333,21 @@ fn limits_and_bad_input_get_clear_errors() {
     assert_eq!((status, v["path"].as_str()), (413, Some("body")), "{v}");
     let (status, v) = raw("{\"scene_name\": \"cornell\"");
     assert_eq!((status, v["path"].as_str()), (400, Some("body")), "{v}");
+    let with_params = |p: Value| json!({"scene_name": "cornell", "params": p});
     let cases = [
         (
-            json!({"scene_name": "cornell", "params": {"width": 400, "height": 400}}),
+            with_params(json!({"width": 400, "height": 400})),
             "params.width",
         ),
+        (with_params(json!({"k": "many"})), "params.k"),
+        (with_params(json!({"k": 0})), "params.k"),
+        (with_params(json!({"photns": 5})), "params.photns"),
         (
-            json!({"scene_name": "cornell", "params": {"k": "many"}}),
-            "params.k",
-        ),
-        (
-            json!({"scene_name": "cornell", "params": {"k": 0}}),
-            "params.k",
-        ),
-        (
-            json!({"scene_name": "cornell", "params": {"photns": 5}}),
-            "params.photns",
-        ),
-        (
-            json!({"scene_name": "cornell", "params": {"integrator": "magic"}}),
+            with_params(json!({"integrator": "magic"})),
             "params.integrator",
         ),
-        (
-            json!({"scene_name": "cornell", "params": {"photons": 60000000}}),
-            "params.photons",
-        ),
-        (
-            json!({"scene_name": "cornell", "params": {"photons": 40000000}}),
-            "params",
-        ),
+        (with_params(json!({"photons": 60000000})), "params.photons"),
+        (with_params(json!({"photons": 40000000})), "params"),
         (json!({"scene_name": "nope"}), "scene_name"),
         (json!({}), "scene"),
         (json!({"scene_name": "cornell", "colour": 1}), "colour"),
