@@ -50,5 +50,6 @@ fn label(phase: Phase) -> &'static str {
         Phase::BuildMaps => "kd-trees",
         Phase::Precompute => "irradiance",
         Phase::Render => "render",
+        Phase::Passes => "passes",
     }
 }

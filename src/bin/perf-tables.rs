@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use clap::Parser;
 use photonbox::render::photon::{PhotonParams, PhotonStore, build_photon_maps};
-use photonbox::render::{Control, RenderParams, Scene, render_with_maps, trace_maps};
+use photonbox::render::{Control, RenderParams, Scene, ppm, render_with_maps, trace_maps};
 
 #[derive(Parser)]
 struct Args {
@@ -31,6 +31,9 @@ struct Args {
     /// Skip the photon-throughput measurements.
     #[arg(long)]
     no_throughput: bool,
+    /// Skip the progressive (ppm) pass timing.
+    #[arg(long)]
+    no_ppm: bool,
 }
 
 /// The seed's measurements (seconds): (n, k, tracing, render).
@@ -143,6 +146,9 @@ fn main() {
         );
     }
 
+    if !args.no_ppm {
+        ppm_pass(&scene, args.runs);
+    }
     // Throughput: emitted photons per second, and a 1M-photon kd-tree build.
     if args.no_throughput {
         return;
@@ -176,4 +182,43 @@ fn main() {
             median(builds) * 1e3
         );
     }
+}
+
+/// One progressive pass (issue 4's target: under 0.6 s): `runs` passes of one ppm render,
+/// 100k global + 100k caustic photons each, 512x512, 1 spp, automatic radius (k = 50).
+fn ppm_pass(scene: &Scene, runs: usize) {
+    let params = RenderParams {
+        photons: 100_000,
+        caustic_photons: 100_000,
+        iterations: runs as u32,
+        width: Some(512),
+        height: Some(512),
+        ..RenderParams::ppm_defaults()
+    };
+    let opts = ppm::PpmOptions {
+        stop: ppm::Stop {
+            iterations: params.iterations,
+            time_limit: None,
+            target_error: None,
+        },
+        reference: None,
+        resume: None,
+        fingerprint: String::new(),
+    };
+    let out = ppm::render_ppm(scene, &params, opts, &Control::none(), &mut |_| {
+        std::ops::ControlFlow::Continue(())
+    })
+    .expect("not cancelled");
+    let h = &out.state.history;
+    let pass = |f: fn(&ppm::PassStats) -> f64| median(h.iter().map(f).collect());
+    println!(
+        "\n- ppm pass, 100k + 100k photons, 512x512, 1 spp, k = 50 (auto radius): median {:.1} ms \
+         (trace {:.1} + build {:.1} + camera {:.1}) over {} passes; first pass {:.1} ms",
+        pass(|p| p.photon_trace + p.build_maps + p.render) * 1e3,
+        pass(|p| p.photon_trace) * 1e3,
+        pass(|p| p.build_maps) * 1e3,
+        pass(|p| p.render) * 1e3,
+        h.len(),
+        (h[0].photon_trace + h[0].build_maps + h[0].render) * 1e3,
+    );
 }

@@ -15,6 +15,8 @@ pub enum Phase {
     Precompute,
     /// The camera pass.
     Render,
+    /// Progressive passes done (`ppm`; each pass also reports the phases above).
+    Passes,
 }
 
 impl Phase {
@@ -24,6 +26,7 @@ impl Phase {
             Phase::BuildMaps => "build_maps",
             Phase::Precompute => "precompute",
             Phase::Render => "render",
+            Phase::Passes => "passes",
         }
     }
 }

@@ -35,7 +35,7 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
     let diffuse = has(|m| m.diffuse_reflectance() != crate::render::math::Rgb::ZERO);
     let specular = mirror || glass;
     let lit = scene.lights.iter().any(|l| max_component(l.power()) > 0.0);
-    let photon = params.integrator == IntegratorKind::Photon;
+    let photon = params.integrator != IntegratorKind::Raytrace;
     let direct_only = params.photon_store == PhotonStore::DirectOnly;
 
     let caustic_map = plan.needs_caustic_map() && specular && lit && diffuse;

@@ -3,6 +3,7 @@
 //! **Architecture invariant:** nothing under `render/` uses tokio, axum, SQLite or the
 //! `server`/`jobs` modules (a test in tests/architecture.rs reads the sources to check).
 
+pub mod accuracy;
 pub mod camera;
 pub mod control;
 pub mod effects;
@@ -15,6 +16,7 @@ pub mod math;
 pub mod output;
 pub mod photon;
 pub mod pipeline;
+pub mod ppm;
 pub mod sampling;
 pub mod scene;
 pub mod stats;

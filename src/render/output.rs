@@ -52,6 +52,22 @@ pub fn read_image(path: &Path) -> image::ImageResult<Image> {
     })
 }
 
+/// Read a linear OpenEXR (or any format `image` reads as float RGB) as an [`Image`].
+pub fn read_exr(path: &Path) -> image::ImageResult<Image> {
+    let img = image::open(path)?.into_rgb32f();
+    let (width, height) = img.dimensions();
+    let pixels = img
+        .into_raw()
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
+    Ok(Image {
+        width,
+        height,
+        pixels,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,7 +10,7 @@ use crate::render::effects::analyse;
 use crate::render::film::{Image, render_film};
 use crate::render::integrator::{RenderParams, Shader};
 use crate::render::photon::{
-    CausticLookup, IrradianceCache, Photon, PhotonMap, PhotonMaps, build_photon_maps,
+    CausticLookup, Density, IrradianceCache, Photon, PhotonMap, PhotonMaps, build_photon_maps,
 };
 use crate::render::scene::Scene;
 use crate::render::stats::{ParamsEcho, PhotonCounts, Radius, RenderStats, Times};
@@ -90,8 +90,8 @@ pub fn render_with_maps(
         caustic: maps
             .caustic
             .as_ref()
-            .map(|m| CausticLookup::new(m, params.k, caustic_max)),
-        global: cache.as_ref(),
+            .map(|m| Density::Knn(CausticLookup::new(m, params.k, caustic_max))),
+        global: cache.as_ref().map(Density::Cached),
         gather_rays: params.gather_rays,
         max_depth: params.max_depth,
     };
@@ -117,22 +117,22 @@ pub fn render_with_maps(
 }
 
 /// What `collect_stats` reports on.
-struct StatsInput<'a> {
-    scene: &'a Scene,
-    maps: &'a PhotonMaps,
-    params: &'a RenderParams,
-    camera: &'a Camera,
-    cache: Option<&'a IrradianceCache>,
+pub(crate) struct StatsInput<'a> {
+    pub scene: &'a Scene,
+    pub maps: &'a PhotonMaps,
+    pub params: &'a RenderParams,
+    pub camera: &'a Camera,
+    pub cache: Option<&'a IrradianceCache>,
     /// Caustic and global search bounds.
-    radii: (f32, f32),
+    pub radii: (f32, f32),
     /// Precompute and camera-pass seconds.
-    times: (f64, f64),
-    nonfinite_samples: u64,
-    effects: std::collections::BTreeMap<String, crate::render::stats::Effect>,
+    pub times: (f64, f64),
+    pub nonfinite_samples: u64,
+    pub effects: std::collections::BTreeMap<String, crate::render::stats::Effect>,
 }
 
 /// STATS.json for one render.
-fn collect_stats(s: &StatsInput) -> RenderStats {
+pub(crate) fn collect_stats(s: &StatsInput) -> RenderStats {
     let (maps, params) = (s.maps, s.params);
     let count = |m: &Option<PhotonMap>| m.as_ref().map_or((0, 0), |m| (m.emitted, m.len() as u64));
     let (global_emitted, global_stored) = count(&maps.global);
@@ -191,5 +191,7 @@ fn collect_stats(s: &StatsInput) -> RenderStats {
         },
         nonfinite_samples: s.nonfinite_samples,
         threads: rayon::current_num_threads(),
+        ppm: None,
+        error: None,
     }
 }

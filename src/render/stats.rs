@@ -70,4 +70,10 @@ pub struct RenderStats {
     pub radius: Radius,
     pub nonfinite_samples: u64,
     pub threads: usize,
+    /// Progressive photon mapping: parameters, radii and errors per pass.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ppm: Option<crate::render::ppm::PpmReport>,
+    /// The final image against the reference, when one was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<crate::render::accuracy::ImageError>,
 }

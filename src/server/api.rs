@@ -255,7 +255,7 @@ async fn delete_job(
             .await
             .map_err(|e| ApiError::internal(e.to_string()))??;
         app.jobs.remove(id);
-        for ext in ["png", "exr"] {
+        for ext in ["png", "exr", "ppmstate"] {
             let _ = std::fs::remove_file(result_path(&app.config.data, id, ext));
         }
         return Ok(StatusCode::NO_CONTENT.into_response());

@@ -44,6 +44,8 @@ pub struct ParamsJson {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub alpha: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub spp: Option<u32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_depth: Option<u32>,
@@ -84,16 +86,10 @@ pub fn from_json<T: serde::de::DeserializeOwned>(
 
 impl ParamsJson {
     pub fn to_params(&self) -> Result<JobParams, ApiError> {
-        let d = RenderParams::default();
         let integrator = match self.integrator.as_deref() {
             None | Some("photon") => IntegratorKind::Photon,
             Some("raytrace") => IntegratorKind::Raytrace,
-            Some("ppm") => {
-                return Err(ApiError::invalid(
-                    "params.integrator",
-                    "ppm (progressive photon mapping) is not available yet; use photon or raytrace",
-                ));
-            }
+            Some("ppm") => IntegratorKind::Ppm,
             Some(other) => {
                 return Err(ApiError::invalid(
                     "params.integrator",
@@ -101,13 +97,21 @@ impl ParamsJson {
                 ));
             }
         };
-        if self.iterations.is_some() || self.alpha.is_some() {
-            let field = if self.iterations.is_some() {
-                "params.iterations"
-            } else {
-                "params.alpha"
-            };
-            return Err(ApiError::invalid(field, "only for integrator ppm"));
+        let d = if integrator == IntegratorKind::Ppm {
+            RenderParams::ppm_defaults()
+        } else {
+            RenderParams::default()
+        };
+        if integrator != IntegratorKind::Ppm {
+            for (field, set) in [
+                ("params.iterations", self.iterations.is_some()),
+                ("params.alpha", self.alpha.is_some()),
+                ("params.radius", self.radius.is_some()),
+            ] {
+                if set {
+                    return Err(ApiError::invalid(field, "only for integrator ppm"));
+                }
+            }
         }
         let photon_store = match self.photon_store.as_deref() {
             None | Some("indirect") => PhotonStore::Indirect,
@@ -141,6 +145,9 @@ impl ParamsJson {
             seed: self.seed.unwrap_or(d.seed),
             width: self.width,
             height: self.height,
+            iterations: self.iterations.unwrap_or(d.iterations),
+            alpha: self.alpha.unwrap_or(d.alpha),
+            radius: self.radius,
         };
         render
             .validate()
@@ -208,12 +215,18 @@ impl JobNeeds {
         let photon_bytes = 32u64;
         let (global, caustic) = match p.integrator {
             IntegratorKind::Raytrace => (0, 0),
-            IntegratorKind::Photon => (p.photons * 3, p.caustic_photons),
+            // ppm: one pass's maps at a time, whatever the number of passes.
+            IntegratorKind::Photon | IntegratorKind::Ppm => (p.photons * 3, p.caustic_photons),
         };
         // Traced photons are gathered in per-chunk buffers, then copied into the map.
         let maps = (global + caustic) * photon_bytes * 2;
         let irradiance = global / 4 * 64;
-        let film = pixels * 12 * 3;
+        let film = pixels * 12 * 3
+            + if p.integrator == IntegratorKind::Ppm {
+                pixels * 24
+            } else {
+                0
+            };
         let geometry = triangles as u64 * 160;
         JobNeeds {
             pixels,
@@ -247,6 +260,15 @@ impl JobNeeds {
             return Err(ApiError::invalid(
                 "params.k",
                 format!("{} exceeds the limit of {}", p.k, limits.max_k),
+            ));
+        }
+        if p.iterations > limits.max_iterations {
+            return Err(ApiError::invalid(
+                "params.iterations",
+                format!(
+                    "{} exceeds the limit of {} passes",
+                    p.iterations, limits.max_iterations
+                ),
             ));
         }
         if self.triangles > limits.max_triangles {

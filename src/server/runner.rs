@@ -11,13 +11,18 @@ use serde_json::{Value, json};
 
 use super::App;
 use super::cache::CacheOutcome;
-use super::jobs::{ParamsJson, cache_key, resolve_scene, result_path};
+use super::jobs::{JobParams, ParamsJson, cache_key, resolve_scene, result_path};
+use super::state::Snapshot;
 use super::store::{Status, now};
 use crate::render::effects::analyse;
 use crate::render::photon::build_photon_maps;
+use crate::render::ppm::{self, PpmError, PpmOptions, PpmState, Stop};
 use crate::render::{
-    Cancelled, Control, Phase, Progress, RenderParams, Scene, output, render_with_maps,
+    Cancelled, Control, IntegratorKind, Phase, Progress, RenderOutput, RenderParams, Scene, output,
+    render_with_maps,
 };
+use std::ops::ControlFlow;
+use tokio::sync::watch;
 
 /// Why a job did not finish.
 enum Failure {
@@ -63,6 +68,10 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
     };
     app.metrics.add_render_seconds(t0.elapsed().as_secs_f64());
     let requeue = matches!(result, Err(Failure::Cancelled)) && app.scheduler.is_stopping();
+    if result.is_err() && !requeue {
+        // A progressive render's saved state is only kept for a job that will resume.
+        let _ = std::fs::remove_file(result_path(&app.config.data, id, "ppmstate"));
+    }
     app.commit_job(id, |r| match &result {
         Ok(stats) => {
             r.status = Status::Done;
@@ -92,7 +101,12 @@ fn phase_weights(p: &RenderParams, pixels: u64) -> [f64; 4] {
     [
         photons / 3e6,
         photons / 1e7,
-        p.photons as f64 * 0.35 * p.k as f64 / 2e7,
+        // ppm reads its maps by a fixed radius: no irradiance precomputation.
+        if p.integrator == IntegratorKind::Ppm {
+            0.0
+        } else {
+            p.photons as f64 * 0.35 * p.k as f64 / 2e7
+        },
         samples / 3e6,
     ]
 }
@@ -102,7 +116,7 @@ fn phase_index(phase: Phase) -> usize {
         Phase::PhotonTrace => 0,
         Phase::BuildMaps => 1,
         Phase::Precompute => 2,
-        Phase::Render => 3,
+        Phase::Render | Phase::Passes => 3,
     }
 }
 
@@ -139,15 +153,29 @@ fn execute(
     let live = app.jobs.live(id).ok_or_else(|| bad("job deleted".into()))?;
     let started = Instant::now();
     let last = Mutex::new((0.0f64, None::<&'static str>));
+    // ppm: passes done, and the passes in all; a pass's phases fill in between.
+    let passes = std::sync::atomic::AtomicU64::new(0);
+    let iterations = if p.integrator == IntegratorKind::Ppm {
+        p.iterations as f64
+    } else {
+        1.0
+    };
     let on_progress = |pr: Progress| {
-        let i = phase_index(pr.phase);
-        let before: f64 = weights[..i].iter().sum();
         let within = if pr.total > 0 {
             pr.done as f64 / pr.total as f64
         } else {
             1.0
         };
-        let f = ((before + weights[i] * within) / total).clamp(0.0, 0.999);
+        let f = if pr.phase == Phase::Passes {
+            passes.store(pr.done, std::sync::atomic::Ordering::Relaxed);
+            within
+        } else {
+            let i = phase_index(pr.phase);
+            let before: f64 = weights[..i].iter().sum();
+            let in_pass = (before + weights[i] * within) / total;
+            (passes.load(std::sync::atomic::Ordering::Relaxed) as f64 + in_pass) / iterations
+        };
+        let f = f.clamp(0.0, 0.999);
         let mut last = last.lock().unwrap_or_else(|e| e.into_inner());
         let phase = Some(pr.phase.name());
         if f < last.0 + 0.005 && phase == last.1 {
@@ -175,6 +203,26 @@ fn execute(
         .start_handler(|_| lower_priority())
         .build()
         .map_err(|e| bad(format!("starting render threads: {e}")))?;
+    if p.integrator == IntegratorKind::Ppm {
+        let out = pool.install(|| {
+            render_progressive(
+                app,
+                id,
+                &resolved.json.to_string(),
+                &scene,
+                &params,
+                &control,
+                &live,
+            )
+        })?;
+        drop(pool);
+        let mut stats = serde_json::to_value(&out.stats).map_err(|e| bad(e.to_string()))?;
+        stats["photons"]["traced_by_this_job"] =
+            json!(out.stats.photons.global_emitted + out.stats.photons.caustic_emitted);
+        stats["cache"] = json!({ "photon_maps": CacheOutcome::NotNeeded.as_str() });
+        stats["params"]["exposure"] = json!(params.exposure);
+        return Ok(stats);
+    }
     let (out, outcome, key) = pool.install(|| -> Result<_, Failure> {
         let analysis = analyse(&scene, p);
         let pp = analysis.photon_params;
@@ -214,6 +262,68 @@ fn execute(
     stats["cache"] = json!({ "photon_maps": outcome.as_str(), "key": &key[..16] });
     stats["params"]["exposure"] = json!(params.exposure);
     Ok(stats)
+}
+
+/// A `ppm` job, pass by pass: after each pass the preview images and the running state
+/// are written (atomically) and a preview is published; a job interrupted by a restart
+/// resumes from its last saved pass, with the same bytes as an uninterrupted render.
+fn render_progressive(
+    app: &Arc<App>,
+    id: i64,
+    scene_json: &str,
+    scene: &Scene,
+    params: &JobParams,
+    control: &Control,
+    live: &watch::Sender<Snapshot>,
+) -> Result<RenderOutput, Failure> {
+    let p = &params.render;
+    let state_path = result_path(&app.config.data, id, "ppmstate");
+    let fingerprint = ppm::fingerprint(scene_json.as_bytes(), p);
+    // A state that does not load or does not match is not ours to trust: start over.
+    let resume = std::fs::read(&state_path)
+        .ok()
+        .and_then(|b| PpmState::load(&b[..]).ok())
+        .filter(|s| s.fingerprint == fingerprint);
+    let opts = PpmOptions {
+        stop: Stop {
+            iterations: p.iterations,
+            time_limit: None,
+            target_error: None,
+        },
+        reference: None,
+        resume,
+        fingerprint,
+    };
+    let mut on_pass = |state: &PpmState| {
+        let image = state.image();
+        let png = result_path(&app.config.data, id, "png");
+        let exr = result_path(&app.config.data, id, "exr");
+        let wrote = write_atomically(&png, |t| output::write_png(&image, params.exposure, t))
+            .and_then(|_| write_atomically(&exr, |t| output::write_exr(&image, t)))
+            .and_then(|_| {
+                let mut buf = Vec::new();
+                state
+                    .save(&mut buf)
+                    .and_then(|_| std::fs::write(state_path.with_extension("partial"), &buf))
+                    .and_then(|_| {
+                        std::fs::rename(state_path.with_extension("partial"), &state_path)
+                    })
+                    .map_err(|e| Failure::Error(format!("saving the render state: {e}")))
+            });
+        if let Err(Failure::Error(e)) = wrote {
+            tracing::warn!(job = id, "preview of pass {}: {e}", state.passes);
+        }
+        live.send_modify(|s| s.previews += 1);
+        ControlFlow::Continue(())
+    };
+    match ppm::render_ppm(scene, p, opts, control, &mut on_pass) {
+        Ok(out) => {
+            let _ = std::fs::remove_file(&state_path);
+            Ok(out.output)
+        }
+        Err(PpmError::Cancelled(_)) => Err(Failure::Cancelled),
+        Err(PpmError::Input(e)) => Err(Failure::Error(e)),
+    }
 }
 
 /// Render threads run at a lower priority (nice 10) than the API's threads, so that the

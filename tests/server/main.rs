@@ -486,3 +486,77 @@ fn sigterm_ends_streams_and_requeues_the_running_job() {
     );
     delete(&s, &t, id);
 }
+
+/// A progressive job: a preview after each pass, then the final image; killed after some
+/// passes, it resumes from its saved state and ends with the same bytes as a job that was
+/// never interrupted (issue 4, on the server).
+#[test]
+fn ppm_jobs_stream_previews_and_resume_after_a_crash() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &["--max-running", "1"]);
+    let t = s.admin.clone();
+    let job = json!({
+        "scene_name": "cornell_mirror_glass",
+        "params": {"integrator": "ppm", "iterations": 40, "width": 64, "height": 48,
+                   "photons": 60000, "caustic_photons": 60000}
+    });
+    let id = submit(&s, &t, job.clone());
+    // Passes are published as previews; wait for a few, then kill the server mid-render.
+    let evs = follow(&s, &t, id, |e| {
+        e.data["previews"].as_u64().unwrap_or(0) >= 3
+    });
+    let last = evs.last().unwrap();
+    assert_eq!(last.data["status"], "running", "{evs:?}");
+    assert!(evs.iter().any(|e| e.name == "preview"), "{evs:?}");
+    let (status, png) = bytes(&s, &t, &format!("/api/jobs/{id}/image.png"));
+    assert_eq!(status, 200, "a preview image is served while the job runs");
+    assert!(png.starts_with(b"\x89PNG"));
+    s.kill();
+    assert!(
+        dir.path()
+            .join("results")
+            .join(format!("{id}.ppmstate"))
+            .is_file()
+    );
+
+    let s = Server::start(dir.path(), &["--max-running", "1"]);
+    let evs = follow_to_end(&s, &t, id);
+    assert_eq!(evs.last().unwrap().name, "done", "{evs:?}");
+    let (_, resumed) = get(&s, &t, &format!("/api/jobs/{id}"));
+    let history = resumed["stats"]["ppm"]["history"].as_array().unwrap();
+    assert_eq!(history.len(), 40, "all 40 passes are in the stats");
+    assert_eq!(resumed["stats"]["ppm"]["passes"], 40);
+    assert_eq!(resumed["stats"]["params"]["integrator"], "ppm");
+    assert!(
+        !dir.path()
+            .join("results")
+            .join(format!("{id}.ppmstate"))
+            .exists()
+    );
+
+    let again = submit(&s, &t, job);
+    follow_to_end(&s, &t, again);
+    let (_, a) = bytes(&s, &t, &format!("/api/jobs/{id}/image.exr"));
+    let (_, b) = bytes(&s, &t, &format!("/api/jobs/{again}/image.exr"));
+    assert!(
+        a == b,
+        "the resumed job's EXR differs from an uninterrupted one"
+    );
+
+    // ppm-only parameters elsewhere, and out-of-range ones, name their field.
+    let (status, err) = post(
+        &s,
+        &t,
+        &json!({"scene_name": "cornell", "params": {"iterations": 4}}),
+    );
+    assert_eq!(
+        (status, err["path"].as_str()),
+        (422, Some("params.iterations"))
+    );
+    let (status, err) = post(
+        &s,
+        &t,
+        &json!({"scene_name": "cornell", "params": {"integrator": "ppm", "alpha": 1.5}}),
+    );
+    assert_eq!((status, err["path"].as_str()), (422, Some("params.alpha")));
+}

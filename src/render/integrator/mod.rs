@@ -35,6 +35,9 @@ pub enum IntegratorKind {
     Raytrace,
     /// Jensen-style photon mapping with global and caustic maps.
     Photon,
+    /// Progressive photon mapping (Knaus and Zwicker 2011): independent passes of `photon`
+    /// with fixed-radius estimates whose radius shrinks, averaged (see `render::ppm`).
+    Ppm,
 }
 
 impl IntegratorKind {
@@ -42,6 +45,7 @@ impl IntegratorKind {
         match self {
             IntegratorKind::Raytrace => "raytrace",
             IntegratorKind::Photon => "photon",
+            IntegratorKind::Ppm => "ppm",
         }
     }
 }
@@ -67,7 +71,20 @@ pub struct RenderParams {
     /// Resolution override (else the scene's camera).
     pub width: Option<u32>,
     pub height: Option<u32>,
+    /// `ppm`: passes to render (a stop condition; see `render::ppm::Stop` for the others).
+    pub iterations: u32,
+    /// `ppm`: radius reduction, r_{i+1}^2 = r_i^2 (i + alpha) / (i + 1), in (0, 1).
+    pub alpha: f64,
+    /// `ppm`: initial radius of both maps' estimates (scene units); `None`: from the k-NN
+    /// radius of the first pass's photons (see `render::ppm::initial_radius`).
+    pub radius: Option<f32>,
 }
+
+/// Default passes of `ppm`.
+pub const DEFAULT_ITERATIONS: u32 = 16;
+
+/// Most passes of `ppm` (a pass costs at least a photon trace and a camera pass).
+pub const MAX_ITERATIONS: u32 = 1_000_000;
 
 /// A render parameter out of range: the field (snake_case, as the server's JSON names it;
 /// the CLI flag is `--` and the name with dashes) and what is wrong.
@@ -119,7 +136,50 @@ impl RenderParams {
                 format!("must be at most 65536, got {}", self.gather_rays),
             );
         }
+        if !(1..=MAX_ITERATIONS).contains(&self.iterations) {
+            return bad(
+                "iterations",
+                format!("must be in 1..={MAX_ITERATIONS}, got {}", self.iterations),
+            );
+        }
+        if !(self.alpha > 0.0 && self.alpha < 1.0) {
+            return bad(
+                "alpha",
+                format!("must be in (0, 1) (exclusive), got {}", self.alpha),
+            );
+        }
+        if let Some(r) = self.radius
+            && !(r > 0.0 && r.is_finite())
+        {
+            return bad("radius", format!("must be a positive number, got {r}"));
+        }
+        if self.integrator != IntegratorKind::Ppm {
+            let d = RenderParams::default();
+            if self.iterations != d.iterations {
+                return bad("iterations", "only for integrator ppm".into());
+            }
+            if self.alpha != d.alpha {
+                return bad("alpha", "only for integrator ppm".into());
+            }
+            if self.radius.is_some() {
+                return bad("radius", "only for integrator ppm".into());
+            }
+        }
         Ok(())
+    }
+
+    /// The parameters with `ppm`'s defaults where they differ from `photon`'s: one sample
+    /// per pixel and no final gathering per pass (the passes average both out).
+    pub fn ppm_defaults() -> RenderParams {
+        RenderParams {
+            integrator: IntegratorKind::Ppm,
+            spp: 1,
+            gather_rays: 0,
+            iterations: DEFAULT_ITERATIONS,
+            photons: 100_000,
+            caustic_photons: 100_000,
+            ..RenderParams::default()
+        }
     }
 }
 
@@ -137,6 +197,9 @@ impl Default for RenderParams {
             seed: 1,
             width: None,
             height: None,
+            iterations: 1,
+            alpha: 0.7,
+            radius: None,
         }
     }
 }
@@ -187,7 +250,7 @@ impl Plan {
                     gather_hit: nothing,
                 }
             }
-            (IntegratorKind::Photon, PhotonStore::DirectOnly) => {
+            (IntegratorKind::Photon | IntegratorKind::Ppm, PhotonStore::DirectOnly) => {
                 let v = VertexPlan {
                     global: ClassMask::of(&[Direct]),
                     ..nothing
@@ -198,7 +261,7 @@ impl Plan {
                     gather_hit: nothing,
                 }
             }
-            (IntegratorKind::Photon, store) => {
+            (IntegratorKind::Photon | IntegratorKind::Ppm, store) => {
                 let indirect = store == PhotonStore::Indirect;
                 let direct_from_map = if indirect { vec![] } else { vec![Direct] };
                 let read = |extra: &[PathClass]| {

@@ -8,7 +8,7 @@ use super::{Plan, VertexPlan};
 use crate::render::geometry::{Hit, Ray, Surface, SurfacePoint, spawn_ray, spawn_ray_to};
 use crate::render::material::{Material, SpecularBranch, Transport};
 use crate::render::math::{Frame, Rgb, luminance, reflect};
-use crate::render::photon::{CausticLookup, IrradianceCache, KnnScratch};
+use crate::render::photon::{ClassMask, Density, DensityScratch};
 use crate::render::sampling::{Sampler, cosine_hemisphere, power_cosine};
 use crate::render::scene::Scene;
 
@@ -22,8 +22,8 @@ const SPLIT_DEPTH: u32 = 2;
 pub struct Shader<'a> {
     pub scene: &'a Scene,
     pub plan: Plan,
-    pub caustic: Option<CausticLookup<'a>>,
-    pub global: Option<&'a IrradianceCache>,
+    pub caustic: Option<Density<'a>>,
+    pub global: Option<Density<'a>>,
     pub gather_rays: u32,
     pub max_depth: u32,
 }
@@ -31,9 +31,7 @@ pub struct Shader<'a> {
 /// Per-thread scratch memory.
 #[derive(Default)]
 pub struct Scratch {
-    knn: KnnScratch,
-    /// The last irradiance point found (a search hint; results do not depend on it).
-    global_hint: Option<u32>,
+    density: DensityScratch,
 }
 
 /// Whether a ray counts the light surfaces it reaches, so that no light path is counted
@@ -167,12 +165,13 @@ impl Shader<'_> {
             if vertex.caustic_map
                 && let Some(cm) = &self.caustic
             {
-                l += rho * FRAC_1_PI * cm.irradiance(sp.p, n_side, &mut scratch.knn);
+                let e = cm.irradiance(sp.p, n_side, ClassMask::ALL, &mut scratch.density);
+                l += rho * FRAC_1_PI * e;
             }
             if !vertex.global.is_empty()
-                && let Some(cache) = self.global
+                && let Some(global) = &self.global
             {
-                let e = cache.lookup(sp.p, n_side, vertex.global, &mut scratch.global_hint);
+                let e = global.irradiance(sp.p, n_side, vertex.global, &mut scratch.density);
                 l += rho * FRAC_1_PI * e;
             }
             if vertex.gather {

@@ -19,7 +19,7 @@ use crate::render::control::{Cancelled, Control, Phase};
 use crate::render::math::Rgb;
 
 /// Minimum cosine between a photon's surface normal and the query's.
-const NORMAL_COS: f32 = 0.8;
+pub(super) const NORMAL_COS: f32 = 0.8;
 
 /// Fixed-point scale for order-independent sums of relative photon powers (which are O(1);
 /// 2^32 leaves room for 10^8 photons of power 10 in an i64).

@@ -5,11 +5,13 @@
 //! [`PhotonMaps`] is an immutable value that does not depend on the camera: the server
 //! caches it and renders many views from one.
 
+mod density;
 mod estimate;
 mod kdtree;
 mod occupancy;
 mod trace;
 
+pub use density::{Density, DensityScratch, RadiusLookup};
 pub use estimate::{
     CausticLookup, IrradianceCache, Query, RadianceEstimate, caustic_irradiance, irradiance_knn,
 };

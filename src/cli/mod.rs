@@ -1,0 +1,5 @@
+//! The subcommands that render: `render` and `sweep`.
+
+pub mod plot;
+pub mod render;
+pub mod sweep;

@@ -1,0 +1,294 @@
+//! Progressive photon mapping (issue 4): the radius schedule, convergence toward analytic
+//! answers, determinism across thread counts, and resuming from a saved state.
+
+mod common;
+
+use std::f64::consts::PI;
+use std::ops::ControlFlow;
+
+use common::{assert_all_finite, scene};
+use photonbox::render::photon::PhotonStore;
+use photonbox::render::ppm::{self, PpmOptions, PpmOutput, PpmState, Stop, StopReason};
+use photonbox::render::{Control, Image, RenderParams, Scene};
+
+/// A point light over a large diffuse floor, seen from above (as in tests/analytic.rs).
+const FLOOR: &str = r#"{
+    "camera": {"position": [0, 3, 0], "look_at": [0, 0, 0], "up": [0, 0, -1], "fov": 60,
+               "width": 48, "height": 48},
+    "materials": {"floor": {"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}},
+    "objects": [{"type": "quad", "material": "floor", "corner": [-50, 0, -50],
+                 "edge_u": [0, 0, 100], "edge_v": [100, 0, 0]}],
+    "lights": [{"type": "point", "position": [0, 1, 0], "power": [100, 100, 100]}]
+}"#;
+
+/// A glass sphere over a floor, and a mirror: caustics, both maps.
+const CAUSTIC: &str = r#"{
+    "camera": {"position": [0, 2, 4], "look_at": [0, 0.5, 0], "up": [0, 1, 0], "fov": 45,
+               "width": 40, "height": 32},
+    "materials": {"floor": {"type": "diffuse", "albedo": [0.7, 0.7, 0.7]},
+                  "glass": {"type": "dielectric", "ior": 1.5},
+                  "mirror": {"type": "mirror", "reflectance": [0.9, 0.9, 0.9]}},
+    "objects": [{"type": "quad", "material": "floor", "corner": [-5, 0, 5],
+                 "edge_u": [10, 0, 0], "edge_v": [0, 0, -10]},
+                {"type": "sphere", "material": "glass", "center": [0, 0.6, 0], "radius": 0.5},
+                {"type": "sphere", "material": "mirror", "center": [1.2, 0.4, -0.5], "radius": 0.4}],
+    "lights": [{"type": "point", "position": [0, 3, 0], "power": [200, 200, 200]}]
+}"#;
+
+fn ppm_params(photons: u64, iterations: u32) -> RenderParams {
+    RenderParams {
+        photons,
+        caustic_photons: photons,
+        iterations,
+        ..RenderParams::ppm_defaults()
+    }
+}
+
+fn options(iterations: u32, resume: Option<PpmState>) -> PpmOptions<'static> {
+    PpmOptions {
+        stop: Stop {
+            iterations,
+            time_limit: None,
+            target_error: None,
+        },
+        reference: None,
+        resume,
+        fingerprint: "test".into(),
+    }
+}
+
+/// A ppm render, with the image after every pass.
+fn run(scene: &Scene, params: &RenderParams, resume: Option<PpmState>) -> (PpmOutput, Vec<Image>) {
+    let mut images = Vec::new();
+    let out = ppm::render_ppm(
+        scene,
+        params,
+        options(params.iterations, resume),
+        &Control::none(),
+        &mut |s| {
+            images.push(s.image());
+            ControlFlow::Continue(())
+        },
+    )
+    .unwrap();
+    assert_all_finite(&out.output.image);
+    (out, images)
+}
+
+#[test]
+fn radius_follows_the_knaus_zwicker_schedule() {
+    let s = scene(CAUSTIC);
+    for (radius, alpha) in [(Some(0.3f32), 0.7), (None, 0.5)] {
+        let params = RenderParams {
+            radius,
+            alpha,
+            ..ppm_params(5_000, 12)
+        };
+        let (out, _) = run(&s, &params, None);
+        let h = &out.state.history;
+        assert_eq!(h.len(), 12);
+        let r0 = [h[0].radius_global, h[0].radius_caustic];
+        match radius {
+            Some(r) => assert_eq!(r0, [r as f64; 2]),
+            None => {
+                // Automatic: a k-NN radius, positive and within a tenth of the scene.
+                let extent = s.extent() as f64;
+                for r in r0 {
+                    assert!(
+                        r > 0.0 && r <= 0.1 * extent + 1e-6,
+                        "{r} vs extent {extent}"
+                    );
+                }
+            }
+        }
+        // r_{i+1}^2 = r_i^2 (i + alpha) / (i + 1), so r_i^2 = r_1^2 prod_{j<i} (j + a)/(j + 1).
+        let mut factor = 1.0f64;
+        for (i, p) in h.iter().enumerate() {
+            assert_eq!(p.pass, i as u32 + 1);
+            for (got, first) in [(p.radius_global, r0[0]), (p.radius_caustic, r0[1])] {
+                let want = first * factor.sqrt();
+                assert!(
+                    (got / want - 1.0).abs() < 1e-6,
+                    "pass {}: {got} vs {want}",
+                    p.pass
+                );
+            }
+            factor *= (i as f64 + 1.0 + alpha) / (i as f64 + 2.0);
+        }
+        assert!(h[11].radius_global < 0.75 * h[0].radius_global);
+        let report = out.output.stats.ppm.as_ref().unwrap();
+        assert_eq!((report.passes, report.alpha), (12, alpha));
+        assert_eq!(report.stopped_by, StopReason::Iterations);
+    }
+}
+
+/// Fixed-radius estimates blur the irradiance peak under a point light (bias ~ r^2); the
+/// shrinking radius removes it, where one pass keeps it.
+#[test]
+fn ppm_converges_under_a_point_light() {
+    let s = scene(FLOOR);
+    let params = RenderParams {
+        photon_store: PhotonStore::DirectOnly,
+        radius: Some(0.6),
+        ..ppm_params(40_000, 64)
+    };
+    let (_, images) = run(&s, &params, None);
+    // The centre 4x4 pixels look straight down at the peak: E = P/(4 pi h^2) (cos = 1).
+    let want = 0.5 / PI * 100.0 / (4.0 * PI);
+    let peak = |img: &Image| img.mean_rgb(22, 22, 26, 26)[0] / want - 1.0;
+    let e: Vec<f64> = [1, 4, 16, 64]
+        .iter()
+        .map(|&i| peak(&images[i - 1]))
+        .collect();
+    eprintln!("peak error at passes 1, 4, 16, 64: {e:+.4?}");
+    assert!(
+        e[0] < -0.1,
+        "one pass at r = 0.6 should blur the peak: {:+.4}",
+        e[0]
+    );
+    // The mean of the passes' biases (each ~ r_i^2) falls steadily.
+    for w in e.windows(2) {
+        assert!(w[1].abs() < w[0].abs(), "{e:+.4?}");
+    }
+    assert!(e[3].abs() < 0.65 * e[0].abs(), "{e:+.4?}");
+    // Noise falls too: the whole image against the analytic field.
+    let exact = |x: u32, y: u32| {
+        // Pixel centre to floor point (the camera looks straight down from 3 units).
+        let t = (60f64.to_radians() / 2.0).tan();
+        let u = ((x as f64 + 0.5) / 48.0 * 2.0 - 1.0) * t * 3.0;
+        let v = ((y as f64 + 0.5) / 48.0 * 2.0 - 1.0) * t * 3.0;
+        let d2 = u * u + v * v + 1.0;
+        0.5 / PI * 100.0 / (4.0 * PI) / d2 / d2.sqrt()
+    };
+    let rms = |img: &Image| {
+        let mut sum = 0.0;
+        for y in 8..40 {
+            for x in 8..40 {
+                sum += (img.get(x, y)[0] as f64 / exact(x, y) - 1.0).powi(2);
+            }
+        }
+        (sum / (32.0 * 32.0)).sqrt()
+    };
+    let (r1, r64) = (rms(&images[0]), rms(&images[63]));
+    eprintln!("relative rms: pass 1 {r1:.4}, pass 64 {r64:.4}");
+    assert!(r64 < 0.5 * r1, "{r64} vs {r1}");
+}
+
+#[test]
+fn ppm_is_bit_identical_across_thread_counts() {
+    let s = scene(CAUSTIC);
+    let params = ppm_params(8_000, 3);
+    let bits = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let (out, _) = pool.install(|| run(&s, &params, None));
+        out.output
+            .image
+            .pixels
+            .iter()
+            .flatten()
+            .map(|c| c.to_bits())
+            .collect::<Vec<_>>()
+    };
+    let one = bits(1);
+    assert_eq!(one, bits(2));
+    assert_eq!(one, bits(3));
+    assert!(one.iter().any(|&b| b != 0));
+}
+
+#[test]
+fn resumed_render_equals_an_uninterrupted_one() {
+    let s = scene(CAUSTIC);
+    let params = ppm_params(8_000, 6);
+    let (full, _) = run(&s, &params, None);
+
+    // Stop after pass 2 (the callback asks to), save, load, continue to 6.
+    let mut saved = Vec::new();
+    let first = ppm::render_ppm(&s, &params, options(6, None), &Control::none(), &mut |st| {
+        if st.passes == 2 {
+            st.save(&mut saved).unwrap();
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    })
+    .unwrap();
+    assert_eq!(first.state.passes, 2);
+    assert_eq!(
+        first.output.stats.ppm.unwrap().stopped_by,
+        StopReason::Paused
+    );
+    let state = PpmState::load(&saved[..]).unwrap();
+    let (resumed, passes_seen) = run(&s, &params, Some(state));
+    assert_eq!(passes_seen.len(), 4, "passes 3..=6 run after resuming");
+    assert_eq!(resumed.state.passes, 6);
+    assert!(
+        resumed.output.image == full.output.image,
+        "resumed image differs"
+    );
+    assert_eq!(resumed.state.history.len(), 6);
+
+    // A state for other parameters is refused, not silently restarted.
+    let other = ppm::render_ppm(
+        &s,
+        &params,
+        PpmOptions {
+            fingerprint: "another".into(),
+            ..options(6, Some(PpmState::load(&saved[..]).unwrap()))
+        },
+        &Control::none(),
+        &mut |_| ControlFlow::Continue(()),
+    );
+    assert!(matches!(other, Err(ppm::PpmError::Input(_))));
+}
+
+#[test]
+fn target_error_and_time_limit_stop_early() {
+    let s = scene(CAUSTIC);
+    let params = ppm_params(4_000, 1_000);
+    let reference = run(&s, &ppm_params(4_000, 4), None).0.output.image;
+    let out = ppm::render_ppm(
+        &s,
+        &params,
+        PpmOptions {
+            stop: Stop {
+                iterations: 1_000,
+                time_limit: None,
+                target_error: Some(1e9),
+            },
+            reference: Some(&reference),
+            ..options(1_000, None)
+        },
+        &Control::none(),
+        &mut |_| ControlFlow::Continue(()),
+    )
+    .unwrap();
+    // Any error meets a target of 1e9: one pass, and its error recorded.
+    assert_eq!(out.state.passes, 1);
+    let report = out.output.stats.ppm.unwrap();
+    assert_eq!(report.stopped_by, StopReason::TargetError);
+    assert!(report.history[0].error.is_some() && out.output.stats.error.is_some());
+
+    let out = ppm::render_ppm(
+        &s,
+        &params,
+        PpmOptions {
+            stop: Stop {
+                iterations: 1_000,
+                time_limit: Some(1e-9),
+                target_error: None,
+            },
+            ..options(1_000, None)
+        },
+        &Control::none(),
+        &mut |_| ControlFlow::Continue(()),
+    )
+    .unwrap();
+    assert_eq!(out.state.passes, 1, "at least one pass, then the limit");
+    assert_eq!(
+        out.output.stats.ppm.unwrap().stopped_by,
+        StopReason::TimeLimit
+    );
+}
