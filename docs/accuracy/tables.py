@@ -118,7 +118,7 @@ def main():
                      os.path.join(s, "ppm", "passes.csv"))
         equal_time_table(out, s)
     conv = os.path.join(d, "convergence")
-    if os.path.isdir(conv):
+    if os.path.exists(os.path.join(conv, "results.csv")):
         out.append("### Convergence on the caustic scene (cornell_mirror_glass_twin)\n")
         p = passes_table(out, "ppm, 400k global + 2M caustic photons per pass",
                          os.path.join(conv, "passes.csv"))

@@ -185,7 +185,7 @@ fn main() {
 }
 
 /// One progressive pass (issue 4's target: under 0.6 s): `runs` passes of one ppm render,
-/// 100k global + 100k caustic photons each, 512x512, 1 spp, automatic radius (k = 50).
+/// 100k global + 100k caustic photons each, 512x512, 1 spp, automatic radius (ppm's k).
 fn ppm_pass(scene: &Scene, runs: usize) {
     let params = RenderParams {
         photons: 100_000,
@@ -212,8 +212,9 @@ fn ppm_pass(scene: &Scene, runs: usize) {
     let h = &out.state.history;
     let pass = |f: fn(&ppm::PassStats) -> f64| median(h.iter().map(f).collect());
     println!(
-        "\n- ppm pass, 100k + 100k photons, 512x512, 1 spp, k = 50 (auto radius): median {:.1} ms \
+        "\n- ppm pass, 100k + 100k photons, 512x512, 1 spp, k = {} (auto radius): median {:.1} ms \
          (trace {:.1} + build {:.1} + camera {:.1}) over {} passes; first pass {:.1} ms",
+        params.k,
         pass(|p| p.photon_trace + p.build_maps + p.render) * 1e3,
         pass(|p| p.photon_trace) * 1e3,
         pass(|p| p.build_maps) * 1e3,

@@ -3,3 +3,4 @@
 pub mod plot;
 pub mod render;
 pub mod sweep;
+pub mod sweep_output;

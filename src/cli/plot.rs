@@ -10,6 +10,8 @@ use plotters::prelude::*;
 pub struct Series {
     pub label: String,
     pub points: Vec<(f64, f64)>,
+    /// A short label beside each point (the parameter value there), or none.
+    pub point_labels: Vec<String>,
 }
 
 /// Least-squares fit of ln y = a + b ln x over the points with x, y > 0: (slope b, a).
@@ -101,6 +103,14 @@ pub fn loglog_svg(
         chart
             .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
             .map_err(|e| draw(&e))?;
+        let font = ("sans-serif", 13).into_font().color(&color);
+        chart
+            .draw_series(
+                pts.iter()
+                    .zip(&s.point_labels)
+                    .map(|(&p, l)| Text::new(l.clone(), p, font.clone())),
+            )
+            .map_err(|e| draw(&e))?;
     }
     chart
         .configure_series_labels()
@@ -146,6 +156,7 @@ mod tests {
         let s = Series {
             label: "k=10".into(),
             points: vec![(0.1, 0.5), (1.0, 0.1), (10.0, 0.02)],
+            point_labels: vec!["a".into(), "b".into(), "c".into()],
         };
         loglog_svg(&path, "error", "seconds", "relmse", &[s]).unwrap();
         let svg = std::fs::read_to_string(&path).unwrap();

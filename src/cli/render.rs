@@ -47,9 +47,10 @@ pub struct ParamArgs {
     /// Photons emitted for the caustic map [default: 200000; ppm: 100000 per pass].
     #[arg(long)]
     pub caustic_photons: Option<u64>,
-    /// Photons per radiance estimate (ppm: sets the automatic initial radius).
-    #[arg(long, default_value_t = RenderParams::default().k)]
-    pub k: usize,
+    /// Photons per radiance estimate; ppm: sets the automatic initial radius [default: 50;
+    /// ppm: 10].
+    #[arg(long)]
+    pub k: Option<usize>,
     /// Which photons the global map keeps.
     #[arg(long, value_enum, default_value = "indirect")]
     pub photon_store: StoreArg,
@@ -134,7 +135,7 @@ pub fn params_from_args(a: &ParamArgs) -> anyhow::Result<RenderParams> {
         integrator,
         photons: a.photons.unwrap_or(d.photons),
         caustic_photons: a.caustic_photons.unwrap_or(d.caustic_photons),
-        k: a.k,
+        k: a.k.unwrap_or(d.k),
         photon_store,
         gather_rays: a.gather_rays.unwrap_or(d.gather_rays),
         spp: a.spp.unwrap_or(d.spp),
@@ -335,8 +336,15 @@ fn tmp_name(path: &Path) -> PathBuf {
     path.with_extension(format!("partial.{ext}"))
 }
 
+/// Write through a temporary name, synced, then renamed: a crash leaves the old file or the
+/// new one, never a torn one.
 fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    use std::io::Write;
     let tmp = tmp_name(path);
-    std::fs::write(&tmp, bytes).with_context(|| format!("writing {}", path.display()))?;
+    let mut f =
+        std::fs::File::create(&tmp).with_context(|| format!("writing {}", path.display()))?;
+    f.write_all(bytes)
+        .and_then(|_| f.sync_all())
+        .with_context(|| format!("writing {}", path.display()))?;
     std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))
 }

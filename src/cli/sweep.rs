@@ -3,20 +3,19 @@
 //! pass) and log-log plots of error against time (one series per value of the other
 //! parameters) and of the ppm error per pass with its fitted slope.
 
-use std::fmt::Write as _;
 use std::ops::ControlFlow;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
 use clap::Args;
 
-use super::plot::{Series, loglog_fit, loglog_svg};
 use super::render::{IntegratorArg, ParamArgs, StoreArg, params_from_args, read_reference};
+use super::sweep_output::{Row, describe_choice, write_plots, write_results};
 use crate::bad;
-use photonbox::render::accuracy::{ImageError, compare};
-use photonbox::render::ppm::{self, PassStats, PpmOptions, Stop};
-use photonbox::render::{self, Control, Image, IntegratorKind, RenderOutput, Scene, output};
+use photonbox::render::accuracy::compare;
+use photonbox::render::ppm::{self, PpmOptions, Stop};
+use photonbox::render::{self, Control, Image, IntegratorKind, Scene, output};
 
 #[derive(Args)]
 pub struct SweepArgs {
@@ -44,9 +43,9 @@ pub struct SweepArgs {
 }
 
 /// One grid axis: a parameter and its values, as written.
-struct Axis {
-    name: String,
-    values: Vec<String>,
+pub struct Axis {
+    pub name: String,
+    pub values: Vec<String>,
 }
 
 const AXES: &[&str] = &[
@@ -126,7 +125,7 @@ fn set(base: &mut ParamArgs, name: &str, v: &str) -> anyhow::Result<()> {
         }
         "photons" => base.photons = Some(num(name, v)?),
         "caustic_photons" => base.caustic_photons = Some(num(name, v)?),
-        "k" => base.k = num(name, v)?,
+        "k" => base.k = Some(num(name, v)?),
         "gather_rays" => base.gather_rays = Some(num(name, v)?),
         "spp" => base.spp = Some(num(name, v)?),
         "max_depth" => base.max_depth = num(name, v)?,
@@ -156,16 +155,14 @@ fn combinations(axes: &[Axis]) -> Vec<Vec<usize>> {
     out
 }
 
-/// One rendered combination.
-struct Row {
-    choice: Vec<usize>,
-    out: RenderOutput,
-    error: ImageError,
-    passes: Vec<PassStats>,
-    peak_rss_mb: Option<f64>,
-}
-
 pub fn run_sweep(a: SweepArgs) -> anyhow::Result<()> {
+    if let Some(t) = a.time_limit
+        && !(t > 0.0 && t.is_finite())
+    {
+        return Err(bad(format!(
+            "--time-limit must be a positive number of seconds, got {t}"
+        )));
+    }
     let axes = parse_grid(&a.grid)?;
     let combos = combinations(&axes);
     // Check every combination before rendering any.
@@ -231,7 +228,7 @@ pub fn run_sweep(a: SweepArgs) -> anyhow::Result<()> {
             peak_rss_mb: peak_rss_mb(),
         });
     }
-    write_results(&a, &axes, &rows)?;
+    write_results(&a.out, &axes, &rows)?;
     write_plots(&a.out, &axes, &rows)?;
     eprintln!("sweep: {} renders -> {}", rows.len(), a.out.display());
     Ok(())
@@ -279,14 +276,6 @@ fn render_reference(a: &SweepArgs, scene: &Scene, source: &[u8]) -> anyhow::Resu
     Ok(o.output.image)
 }
 
-fn describe_choice(axes: &[Axis], c: &[usize]) -> String {
-    axes.iter()
-        .zip(c)
-        .map(|(a, &i)| format!("{}={}", a.name, a.values[i]))
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
 /// Linux: reset the process's peak resident set (VmHWM) so that it measures the next render.
 fn reset_peak_rss() {
     let _ = std::fs::write("/proc/self/clear_refs", "5");
@@ -298,176 +287,4 @@ fn peak_rss_mb() -> Option<f64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)
-}
-
-/// The CSV columns of results.csv, after the grid's parameters.
-pub const RESULT_COLUMNS: &[&str] = &[
-    "integrator",
-    "photons",
-    "caustic_photons",
-    "k",
-    "gather_rays",
-    "spp",
-    "passes",
-    "photon_trace_s",
-    "build_maps_s",
-    "precompute_s",
-    "render_s",
-    "total_s",
-    "relmse",
-    "block_err",
-    "mean_ratio",
-    "global_stored",
-    "caustic_stored",
-    "peak_rss_mb",
-];
-
-fn write_results(a: &SweepArgs, axes: &[Axis], rows: &[Row]) -> anyhow::Result<()> {
-    let mut csv = String::new();
-    let header: Vec<String> = axes
-        .iter()
-        .map(|x| format!("grid_{}", x.name))
-        .chain(RESULT_COLUMNS.iter().map(|s| s.to_string()))
-        .collect();
-    writeln!(csv, "{}", header.join(","))?;
-    let mut passes = String::from(
-        "combination,pass,elapsed_s,radius_global,radius_caustic,relmse,block_err,mean_ratio\n",
-    );
-    for (n, r) in rows.iter().enumerate() {
-        let s = &r.out.stats;
-        let p = &s.params;
-        let t = &s.times;
-        let mut fields: Vec<String> = axes
-            .iter()
-            .zip(&r.choice)
-            .map(|(x, &i)| x.values[i].clone())
-            .collect();
-        fields.extend([
-            p.integrator.clone(),
-            p.photons.to_string(),
-            p.caustic_photons.to_string(),
-            p.k.to_string(),
-            p.gather_rays.to_string(),
-            p.spp.to_string(),
-            s.ppm.as_ref().map_or(1, |x| x.passes).to_string(),
-            format!("{:.6}", t.photon_trace),
-            format!("{:.6}", t.build_maps),
-            format!("{:.6}", t.precompute),
-            format!("{:.6}", t.render),
-            format!("{:.6}", t.total),
-            format!("{:.8}", r.error.relmse),
-            format!("{:.8}", r.error.block_err),
-            format!("{:.8}", r.error.mean_ratio),
-            s.photons.global_stored.to_string(),
-            s.photons.caustic_stored.to_string(),
-            r.peak_rss_mb.map_or(String::new(), |m| format!("{m:.1}")),
-        ]);
-        writeln!(csv, "{}", fields.join(","))?;
-        for h in &r.passes {
-            if let Some(e) = h.error {
-                writeln!(
-                    passes,
-                    "{n},{},{:.6},{:.6},{:.6},{:.8},{:.8},{:.8}",
-                    h.pass,
-                    h.elapsed,
-                    h.radius_global,
-                    h.radius_caustic,
-                    e.relmse,
-                    e.block_err,
-                    e.mean_ratio
-                )?;
-            }
-        }
-    }
-    let path = a.out.join("results.csv");
-    std::fs::write(&path, csv).with_context(|| format!("writing {}", path.display()))?;
-    if rows.iter().any(|r| !r.passes.is_empty()) {
-        let path = a.out.join("passes.csv");
-        std::fs::write(&path, passes).with_context(|| format!("writing {}", path.display()))?;
-    }
-    Ok(())
-}
-
-fn write_plots(dir: &Path, axes: &[Axis], rows: &[Row]) -> anyhow::Result<()> {
-    // Error against time: for each axis with several values, one series per choice of the
-    // other axes, along which this axis varies.
-    for (ai, axis) in axes.iter().enumerate() {
-        if axis.values.len() < 2 {
-            continue;
-        }
-        for metric in ["relmse", "block_err"] {
-            let mut groups: Vec<(Vec<usize>, Series)> = Vec::new();
-            for r in rows {
-                let mut others = r.choice.clone();
-                others.remove(ai);
-                let y = if metric == "relmse" {
-                    r.error.relmse
-                } else {
-                    r.error.block_err
-                };
-                let point = (r.out.stats.times.total, y);
-                match groups.iter_mut().find(|(o, _)| *o == others) {
-                    Some((_, s)) => s.points.push(point),
-                    None => {
-                        let mut label: Vec<String> = axes
-                            .iter()
-                            .enumerate()
-                            .filter(|(j, _)| *j != ai)
-                            .map(|(j, x)| format!("{}={}", x.name, x.values[r.choice[j]]))
-                            .collect();
-                        if label.is_empty() {
-                            label.push("all".into());
-                        }
-                        let label = format!(
-                            "{} ({} {}..{})",
-                            label.join(" "),
-                            axis.name,
-                            axis.values[0],
-                            axis.values.last().unwrap()
-                        );
-                        groups.push((
-                            others,
-                            Series {
-                                label,
-                                points: vec![point],
-                            },
-                        ));
-                    }
-                }
-            }
-            let series: Vec<Series> = groups.into_iter().map(|(_, s)| s).collect();
-            let path = dir.join(format!("{metric}_vs_time_by_{}.svg", axis.name));
-            let title = format!("{metric} against render time, varying {}", axis.name);
-            loglog_svg(&path, &title, "seconds", metric, &series)?;
-        }
-    }
-    // ppm: error per pass, with the fitted log-log slope.
-    let ppm_series: Vec<Series> = rows
-        .iter()
-        .filter(|r| r.passes.len() >= 2)
-        .map(|r| {
-            let points: Vec<(f64, f64)> = r
-                .passes
-                .iter()
-                .filter_map(|h| h.error.map(|e| (h.pass as f64, e.relmse)))
-                .collect();
-            let slope =
-                loglog_fit(&points).map_or(String::new(), |(b, _)| format!(" slope {b:.2}"));
-            Series {
-                label: format!("{}{slope}", describe_choice(axes, &r.choice)),
-                points,
-            }
-        })
-        .collect();
-    if !ppm_series.is_empty() {
-        let path = dir.join("ppm_relmse_per_pass.svg");
-        loglog_svg(
-            &path,
-            "ppm: relmse against passes (fitted slope)",
-            "pass",
-            "relmse",
-            &ppm_series,
-        )?;
-    }
-    Ok(())
 }

@@ -54,7 +54,22 @@ pub fn read_image(path: &Path) -> image::ImageResult<Image> {
 
 /// Read a linear OpenEXR (or any format `image` reads as float RGB) as an [`Image`].
 pub fn read_exr(path: &Path) -> image::ImageResult<Image> {
-    let img = image::open(path)?.into_rgb32f();
+    let img = image::open(path)?;
+    if !matches!(
+        img,
+        DynamicImage::ImageRgb32F(_) | DynamicImage::ImageRgba32F(_)
+    ) {
+        // An 8-bit image is display-encoded, not radiance: comparing with it would mislead.
+        return Err(image::ImageError::Unsupported(
+            image::error::UnsupportedError::from_format_and_kind(
+                image::error::ImageFormatHint::PathExtension(path.to_path_buf()),
+                image::error::UnsupportedErrorKind::GenericFeature(
+                    "not a linear float image (expected a 32-bit float EXR)".into(),
+                ),
+            ),
+        ));
+    }
+    let img = img.into_rgb32f();
     let (width, height) = img.dimensions();
     let pixels = img
         .into_raw()

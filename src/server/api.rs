@@ -265,6 +265,8 @@ async fn delete_job(
             r.status = Status::Cancelled;
             r.finished = Some(now());
         });
+        // A progressive job re-queued by a restart has a saved state it will not resume.
+        let _ = std::fs::remove_file(result_path(&app.config.data, id, "ppmstate"));
         return Ok(Json(json!({ "id": id, "status": "cancelled" })).into_response());
     }
     if app.scheduler.cancel_running(id) {

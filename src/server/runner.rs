@@ -16,7 +16,7 @@ use super::state::Snapshot;
 use super::store::{Status, now};
 use crate::render::effects::analyse;
 use crate::render::photon::build_photon_maps;
-use crate::render::ppm::{self, PpmError, PpmOptions, PpmState, Stop};
+use crate::render::ppm::{self, PpmError, PpmOptions, PpmState, Stop, StopReason};
 use crate::render::{
     Cancelled, Control, IntegratorKind, Phase, Progress, RenderOutput, RenderParams, Scene, output,
     render_with_maps,
@@ -27,6 +27,8 @@ use tokio::sync::watch;
 /// Why a job did not finish.
 enum Failure {
     Cancelled,
+    /// A progressive job gave way to another user between passes; it resumes later.
+    Yielded,
     Error(String),
 }
 
@@ -67,7 +69,8 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
         }
     };
     app.metrics.add_render_seconds(t0.elapsed().as_secs_f64());
-    let requeue = matches!(result, Err(Failure::Cancelled)) && app.scheduler.is_stopping();
+    let requeue = matches!(result, Err(Failure::Cancelled)) && app.scheduler.is_stopping()
+        || matches!(result, Err(Failure::Yielded));
     if result.is_err() && !requeue {
         // A progressive render's saved state is only kept for a job that will resume.
         let _ = std::fs::remove_file(result_path(&app.config.data, id, "ppmstate"));
@@ -78,11 +81,11 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
             r.finished = Some(now());
             r.stats_json = Some(stats.to_string());
         }
-        Err(Failure::Cancelled) if requeue => {
+        Err(Failure::Cancelled | Failure::Yielded) if requeue => {
             r.status = Status::Queued;
             r.started = None;
         }
-        Err(Failure::Cancelled) => {
+        Err(Failure::Cancelled | Failure::Yielded) => {
             r.status = Status::Cancelled;
             r.finished = Some(now());
         }
@@ -92,6 +95,10 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
             r.error = Some(e.clone());
         }
     });
+    if matches!(result, Err(Failure::Yielded)) {
+        app.scheduler
+            .requeue_front(id, row.user_id, row.memory_bytes);
+    }
 }
 
 /// Relative cost of each phase, for one progress fraction over the whole job.
@@ -301,23 +308,39 @@ fn render_progressive(
         let wrote = write_atomically(&png, |t| output::write_png(&image, params.exposure, t))
             .and_then(|_| write_atomically(&exr, |t| output::write_exr(&image, t)))
             .and_then(|_| {
-                let mut buf = Vec::new();
-                state
-                    .save(&mut buf)
-                    .and_then(|_| std::fs::write(state_path.with_extension("partial"), &buf))
-                    .and_then(|_| {
-                        std::fs::rename(state_path.with_extension("partial"), &state_path)
-                    })
-                    .map_err(|e| Failure::Error(format!("saving the render state: {e}")))
+                write_atomically(&state_path, |t| {
+                    let mut buf = Vec::new();
+                    state.save(&mut buf)?;
+                    std::fs::write(t, &buf)?;
+                    Ok(())
+                })
             });
-        if let Err(Failure::Error(e)) = wrote {
-            tracing::warn!(job = id, "preview of pass {}: {e}", state.passes);
+        match wrote {
+            // The render goes on: the next pass writes again, and the end is checked.
+            Err(Failure::Error(e)) => {
+                tracing::warn!(job = id, "preview of pass {}: {e}", state.passes)
+            }
+            _ => live.send_modify(|s| s.previews += 1),
         }
-        live.send_modify(|s| s.previews += 1);
-        ControlFlow::Continue(())
+        if app.scheduler.should_yield(id) {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
     };
     match ppm::render_ppm(scene, p, opts, control, &mut on_pass) {
+        Ok(out)
+            if out.output.stats.ppm.as_ref().map(|p| p.stopped_by) == Some(StopReason::Paused) =>
+        {
+            Err(Failure::Yielded)
+        }
         Ok(out) => {
+            // The final image, written here so that a failure fails the job.
+            let image = &out.output.image;
+            let png = result_path(&app.config.data, id, "png");
+            let exr = result_path(&app.config.data, id, "exr");
+            write_atomically(&png, |t| output::write_png(image, params.exposure, t))?;
+            write_atomically(&exr, |t| output::write_exr(image, t))?;
             let _ = std::fs::remove_file(&state_path);
             Ok(out.output)
         }
@@ -344,7 +367,12 @@ fn write_atomically(
 ) -> Result<(), Failure> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("tmp");
     let tmp = path.with_extension(format!("partial.{ext}"));
-    write(&tmp).map_err(|e| Failure::Error(format!("writing {}: {e}", path.display())))?;
-    std::fs::rename(&tmp, path)
-        .map_err(|e| Failure::Error(format!("writing {}: {e}", path.display())))
+    let fail =
+        |e: &dyn std::fmt::Display| Failure::Error(format!("writing {}: {e}", path.display()));
+    write(&tmp).map_err(|e| fail(&e))?;
+    // On disk before the rename makes it visible under its final name.
+    std::fs::File::open(&tmp)
+        .and_then(|f| f.sync_all())
+        .map_err(|e| fail(&e))?;
+    std::fs::rename(&tmp, path).map_err(|e| fail(&e))
 }

@@ -7,7 +7,9 @@
 //! time-sliced by the OS at its scheduling quantum (finer than any tile or pass), so a small
 //! job submitted behind another user's long one starts at once and takes about its own
 //! render time multiplied by the number of users rendering, rather than waiting for the
-//! long one. A job starts only when its estimated memory fits beside the running ones.
+//! long one. When every slot (`--max-running`) is taken, a progressive job gives way to a
+//! waiting user between two passes: it goes back to the queue with its state saved and
+//! resumes later. A job starts only when its estimated memory fits beside the running ones.
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -73,6 +75,32 @@ impl Scheduler {
             }
         }
         false
+    }
+
+    /// Whether running job `id` should give way between two passes: every slot is taken and
+    /// another user, with nothing running, has a job waiting.
+    pub fn should_yield(&self, id: i64) -> bool {
+        let st = self.lock();
+        let Some(me) = st.running.get(&id) else {
+            return false;
+        };
+        if st.stopping || st.running.len() < self.max_running {
+            return false;
+        }
+        st.queues.iter().any(|(u, q)| {
+            *u != me.user && !q.is_empty() && !st.running.values().any(|r| r.user == *u)
+        })
+    }
+
+    /// A job that yielded goes back to the front of its user's queue: it is that user's
+    /// next job, and round-robin gives the other users their turn first.
+    pub fn requeue_front(&self, id: i64, user: UserId, memory: u64) {
+        self.lock()
+            .queues
+            .entry(user)
+            .or_default()
+            .push_front((id, memory));
+        self.changed.notify_all();
     }
 
     /// Ask a running job to stop; false if it is not running.

@@ -560,3 +560,35 @@ fn ppm_jobs_stream_previews_and_resume_after_a_crash() {
     );
     assert_eq!((status, err["path"].as_str()), (422, Some("params.alpha")));
 }
+
+/// With one render slot, a progressive job gives way to another user's job between two
+/// passes, then resumes from its saved state and still ends with every pass.
+#[test]
+fn a_progressive_job_yields_its_slot_between_passes() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &["--max-running", "1"]);
+    let alice = s.add_user("alice");
+    let bob = s.add_user("bob");
+    let job = json!({
+        "scene_name": "cornell",
+        "params": {"integrator": "ppm", "iterations": 400, "width": 32, "height": 32,
+                   "photons": 20000}
+    });
+    let long_id = submit(&s, &alice, job);
+    wait_running(&s, &alice, long_id);
+    let mut quick = small("cornell");
+    quick["params"]["integrator"] = json!("raytrace");
+    let small_id = submit(&s, &bob, quick);
+    let evs = follow_to_end(&s, &bob, small_id);
+    assert_eq!(evs.last().unwrap().name, "done");
+    let (_, long_job) = get(&s, &alice, &format!("/api/jobs/{long_id}"));
+    assert_ne!(
+        long_job["status"], "done",
+        "bob's job ran while alice's 400 passes were not done"
+    );
+    let evs = follow_to_end(&s, &alice, long_id);
+    assert_eq!(evs.last().unwrap().name, "done", "{evs:?}");
+    let (_, long_job) = get(&s, &alice, &format!("/api/jobs/{long_id}"));
+    assert_eq!(long_job["stats"]["ppm"]["passes"], 400);
+    assert_eq!(long_job["stats"]["ppm"]["stopped_by"], "iterations");
+}

@@ -15,7 +15,7 @@
 
 mod state;
 
-pub use state::{PassStats, PpmState, StateError};
+pub use state::{PassStats, PassTotals, PpmState, StateError, kept_in_history};
 
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -73,6 +73,7 @@ pub struct PpmReport {
     /// "radius": given; "auto": median k-NN distance (k = `params.k`) in the first pass.
     pub radius_source: &'static str,
     pub stopped_by: StopReason,
+    /// Every pass up to 256, then thinned to about 256 per doubling of the pass count.
     pub history: Vec<PassStats>,
 }
 
@@ -126,7 +127,7 @@ pub fn next_r2(r2: f64, i: u32, alpha: f64) -> f64 {
     r2 * (i as f64 + alpha) / (i as f64 + 1.0)
 }
 
-/// The median distance to the k-th nearest photon (on a surface facing the same way),
+/// The median distance to the k-th nearest other photon (on a surface facing the same way),
 /// over photons spread evenly through the map, capped at `r_max`.
 pub fn initial_radius(map: &PhotonMap, k: usize, r_max: f32) -> f32 {
     let items = map.tree.items();
@@ -143,7 +144,7 @@ pub fn initial_radius(map: &PhotonMap, k: usize, r_max: f32) -> f32 {
             let filter = |q: &crate::render::photon::Photon| q.normal().dot(n) > 0.8;
             let r2 = map
                 .tree
-                .knn(ph.pos.into(), k, r_max * r_max, &filter, &mut scratch);
+                .knn(ph.pos.into(), k + 1, r_max * r_max, &filter, &mut scratch);
             r2.sqrt()
         })
         .collect();
@@ -191,7 +192,7 @@ pub fn render_ppm(
     let tracker = control.tracker(Phase::Passes, opts.stop.iterations as u64);
     tracker.advance(state.passes as u64);
     let mut last_maps = None;
-    let mut last_error = state.history.last().and_then(|h| h.error);
+    let mut last_error = state.last.as_ref().and_then(|h| h.error);
     let stopped_by = loop {
         if let Some(reason) = should_stop(&state, &opts.stop, last_error) {
             break reason;
@@ -204,6 +205,8 @@ pub fn render_ppm(
             seed,
             ..analysis.photon_params.clone()
         };
+        // One pass's maps at a time: the last pass's go before this pass's are traced.
+        drop(last_maps.take());
         let maps = build_photon_maps(scene, &photon_params, control)?;
         if pass == 1 {
             let r0 = |m: &Option<PhotonMap>| match (params.radius, m) {
@@ -242,9 +245,11 @@ pub fn render_ppm(
         state.nonfinite_samples += film.nonfinite_samples;
         state.r2_global = next_r2(state.r2_global, pass, alpha);
         state.r2_caustic = next_r2(state.r2_caustic, pass, alpha);
+        // The pass's time, not counting the comparison with the reference below.
+        let elapsed = state.elapsed() + t0.elapsed().as_secs_f64();
         last_error = opts.reference.and_then(|r| compare(&state.image(), r).ok());
         let stored = |m: &Option<PhotonMap>| m.as_ref().map_or(0, |m| m.len() as u64);
-        state.history.push(PassStats {
+        state.record(PassStats {
             pass,
             radius_global: if maps.global.is_some() {
                 rg as f64
@@ -259,7 +264,7 @@ pub fn render_ppm(
             photon_trace: maps.trace_seconds,
             build_maps: maps.build_seconds,
             render,
-            elapsed: state.elapsed() + t0.elapsed().as_secs_f64(),
+            elapsed,
             global_stored: stored(&maps.global),
             caustic_stored: stored(&maps.caustic),
             error: last_error,
@@ -305,8 +310,9 @@ pub fn render_ppm(
             })
         }
     };
-    sum_times(&mut stats.times, &state.history);
-    stats.error = last_error;
+    sum_times(&mut stats.times, &state);
+    // Against the final image (a resumed render may have run no pass here).
+    stats.error = opts.reference.and_then(|r| compare(&image, r).ok());
     stats.ppm = Some(PpmReport {
         alpha,
         passes: state.passes,
@@ -350,10 +356,10 @@ fn should_stop(state: &PpmState, stop: &Stop, error: Option<ImageError>) -> Opti
 }
 
 /// Totals over the passes into the render's `times`.
-fn sum_times(t: &mut crate::render::stats::Times, history: &[PassStats]) {
-    t.photon_trace = history.iter().map(|h| h.photon_trace).sum();
-    t.build_maps = history.iter().map(|h| h.build_maps).sum();
+fn sum_times(t: &mut crate::render::stats::Times, state: &PpmState) {
+    t.photon_trace = state.totals.photon_trace;
+    t.build_maps = state.totals.build_maps;
     t.precompute = 0.0;
-    t.render = history.iter().map(|h| h.render).sum();
-    t.total = history.last().map_or(0.0, |h| h.elapsed);
+    t.render = state.totals.render;
+    t.total = state.elapsed();
 }

@@ -34,16 +34,40 @@ pub struct PassStats {
     pub error: Option<ImageError>,
 }
 
+/// Seconds summed over all passes, by phase.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, Default, PartialEq)]
+pub struct PassTotals {
+    pub photon_trace: f64,
+    pub build_maps: f64,
+    pub render: f64,
+}
+
+/// Every pass up to this one is kept in the history; beyond it, passes are kept at
+/// logarithmically spaced intervals (about this many per doubling), so that the state stays
+/// small however many passes run.
+const HISTORY_DENSE: u32 = 256;
+
+/// Whether pass `pass` (1-based) is kept in the thinned history.
+pub fn kept_in_history(pass: u32) -> bool {
+    if pass <= HISTORY_DENSE {
+        return true;
+    }
+    let step = 1u32 << (pass / HISTORY_DENSE).ilog2();
+    pass.is_multiple_of(step)
+}
+
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
 struct Header {
     fingerprint: String,
     width: u32,
     height: u32,
     passes: u32,
-    r2_global: f64,
-    r2_caustic: f64,
+    /// Squared radii as f64 bit patterns: JSON text need not round-trip an f64 exactly.
+    r2_bits: [u64; 2],
     radius_initial: [f64; 2],
     nonfinite_samples: u64,
+    totals: PassTotals,
+    last: Option<PassStats>,
     history: Vec<PassStats>,
 }
 
@@ -64,8 +88,14 @@ pub struct PpmState {
     /// Initial radii (global, caustic); 0 until the first pass has set them.
     pub radius_initial: [f64; 2],
     pub nonfinite_samples: u64,
+    /// Seconds of all passes, by phase.
+    pub totals: PassTotals,
+    /// The latest pass.
+    pub last: Option<PassStats>,
+    /// Passes kept for reports: all of the first 256, then thinned (see [`kept_in_history`]).
     pub history: Vec<PassStats>,
-    /// Sum of the passes' images, in f64 (exact for the pass counts we allow).
+    /// Sum of the passes' images, in f64: the same sum in the same order on every run, and
+    /// far from losing the f32 passes' precision at any pass count we allow.
     pub(super) sum: Vec<[f64; 3]>,
 }
 
@@ -90,6 +120,8 @@ impl PpmState {
             r2_caustic: 0.0,
             radius_initial: [0.0; 2],
             nonfinite_samples: 0,
+            totals: PassTotals::default(),
+            last: None,
             history: Vec::new(),
             sum: vec![[0.0; 3]; width as usize * height as usize],
         }
@@ -111,7 +143,18 @@ impl PpmState {
 
     /// Seconds spent in passes so far.
     pub fn elapsed(&self) -> f64 {
-        self.history.last().map_or(0.0, |h| h.elapsed)
+        self.last.as_ref().map_or(0.0, |h| h.elapsed)
+    }
+
+    /// Record a finished pass's statistics.
+    pub(super) fn record(&mut self, p: PassStats) {
+        self.totals.photon_trace += p.photon_trace;
+        self.totals.build_maps += p.build_maps;
+        self.totals.render += p.render;
+        if kept_in_history(p.pass) {
+            self.history.push(p.clone());
+        }
+        self.last = Some(p);
     }
 
     pub(super) fn add_pass(&mut self, pass: &Image) {
@@ -128,10 +171,11 @@ impl PpmState {
             width: self.width,
             height: self.height,
             passes: self.passes,
-            r2_global: self.r2_global,
-            r2_caustic: self.r2_caustic,
+            r2_bits: [self.r2_global.to_bits(), self.r2_caustic.to_bits()],
             radius_initial: self.radius_initial,
             nonfinite_samples: self.nonfinite_samples,
+            totals: self.totals,
+            last: self.last.clone(),
             history: self.history.clone(),
         };
         let json = serde_json::to_vec(&header).map_err(std::io::Error::other)?;
@@ -165,7 +209,10 @@ impl PpmState {
         r.read_exact(&mut json)?;
         let h: Header =
             serde_json::from_slice(&json).map_err(|e| StateError::Corrupt(e.to_string()))?;
-        let n = h.width as usize * h.height as usize;
+        let n = (h.width as usize)
+            .checked_mul(h.height as usize)
+            .filter(|n| *n <= 1 << 32)
+            .ok_or_else(|| StateError::Corrupt(format!("{}x{} pixels", h.width, h.height)))?;
         let mut bytes = Vec::new();
         r.read_to_end(&mut bytes)?;
         if bytes.len() != n * 24 {
@@ -185,10 +232,12 @@ impl PpmState {
             width: h.width,
             height: h.height,
             passes: h.passes,
-            r2_global: h.r2_global,
-            r2_caustic: h.r2_caustic,
+            r2_global: f64::from_bits(h.r2_bits[0]),
+            r2_caustic: f64::from_bits(h.r2_bits[1]),
             radius_initial: h.radius_initial,
             nonfinite_samples: h.nonfinite_samples,
+            totals: h.totals,
+            last: h.last,
             history: h.history,
             sum,
         })
@@ -200,12 +249,22 @@ mod tests {
     use super::*;
 
     #[test]
+    fn history_is_dense_then_thinned() {
+        let kept = |a: u32, b: u32| (a..=b).filter(|&p| kept_in_history(p)).count();
+        assert_eq!(kept(1, 256), 256);
+        assert_eq!(kept(257, 511), 255);
+        assert_eq!(kept(512, 1023), 256);
+        assert_eq!(kept(1024, 2047), 256);
+        assert!(kept(1, 1_000_000) < 256 * 14);
+    }
+
+    #[test]
     fn state_round_trips_exactly() {
         let mut s = PpmState::new("scene+params".into(), 3, 2);
         s.passes = 2;
         s.r2_global = 0.1f64.powi(2) * (1.7 / 2.0);
         s.sum[4] = [1.0 / 3.0, f64::MIN_POSITIVE, 1e300];
-        s.history.push(PassStats {
+        s.record(PassStats {
             pass: 1,
             radius_global: 0.1,
             radius_caustic: 0.01,
@@ -217,9 +276,13 @@ mod tests {
             caustic_stored: 5,
             error: None,
         });
+        // A value whose shortest decimal form a fast float parser may not round-trip.
+        s.r2_caustic = 0.05f64.powi(2) * (2.0 + 2.0 / 3.0) / 3.0;
         let mut buf = Vec::new();
         s.save(&mut buf).unwrap();
-        assert_eq!(PpmState::load(&buf[..]).unwrap(), s);
+        let back = PpmState::load(&buf[..]).unwrap();
+        assert_eq!(back, s);
+        assert_eq!(back.r2_caustic.to_bits(), s.r2_caustic.to_bits());
         assert!(matches!(
             PpmState::load(&b"not a state"[..]),
             Err(StateError::NotAState)

@@ -1,0 +1,218 @@
+//! What `sweep` writes: results.csv, passes.csv and the log-log plots.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::Context;
+
+use super::plot::{Series, loglog_fit, loglog_svg};
+use super::sweep::Axis;
+use photonbox::render::RenderOutput;
+use photonbox::render::accuracy::ImageError;
+use photonbox::render::ppm::PassStats;
+
+/// The per-pass error slope is fitted from this pass on (when there are 8 or more).
+const FIT_FROM_PASS: u32 = 4;
+
+/// One rendered combination.
+pub struct Row {
+    pub choice: Vec<usize>,
+    pub out: RenderOutput,
+    pub error: ImageError,
+    pub passes: Vec<PassStats>,
+    pub peak_rss_mb: Option<f64>,
+}
+
+pub fn describe_choice(axes: &[Axis], c: &[usize]) -> String {
+    axes.iter()
+        .zip(c)
+        .map(|(a, &i)| format!("{}={}", a.name, a.values[i]))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// The CSV columns of results.csv, after the grid's parameters.
+pub const RESULT_COLUMNS: &[&str] = &[
+    "integrator",
+    "photons",
+    "caustic_photons",
+    "k",
+    "gather_rays",
+    "spp",
+    "passes",
+    "photon_trace_s",
+    "build_maps_s",
+    "precompute_s",
+    "render_s",
+    "total_s",
+    "relmse",
+    "block_err",
+    "mean_ratio",
+    "global_stored",
+    "caustic_stored",
+    "peak_rss_mb",
+];
+
+pub fn write_results(dir: &Path, axes: &[Axis], rows: &[Row]) -> anyhow::Result<()> {
+    let mut csv = String::new();
+    let header: Vec<String> = axes
+        .iter()
+        .map(|x| format!("grid_{}", x.name))
+        .chain(RESULT_COLUMNS.iter().map(|s| s.to_string()))
+        .collect();
+    writeln!(csv, "{}", header.join(","))?;
+    let mut passes = String::from(
+        "combination,pass,elapsed_s,radius_global,radius_caustic,relmse,block_err,mean_ratio\n",
+    );
+    for (n, r) in rows.iter().enumerate() {
+        let s = &r.out.stats;
+        let p = &s.params;
+        let t = &s.times;
+        let mut fields: Vec<String> = axes
+            .iter()
+            .zip(&r.choice)
+            .map(|(x, &i)| x.values[i].clone())
+            .collect();
+        fields.extend([
+            p.integrator.clone(),
+            p.photons.to_string(),
+            p.caustic_photons.to_string(),
+            p.k.to_string(),
+            p.gather_rays.to_string(),
+            p.spp.to_string(),
+            s.ppm.as_ref().map_or(1, |x| x.passes).to_string(),
+            format!("{:.6}", t.photon_trace),
+            format!("{:.6}", t.build_maps),
+            format!("{:.6}", t.precompute),
+            format!("{:.6}", t.render),
+            format!("{:.6}", t.total),
+            format!("{:.8}", r.error.relmse),
+            format!("{:.8}", r.error.block_err),
+            format!("{:.8}", r.error.mean_ratio),
+            s.photons.global_stored.to_string(),
+            s.photons.caustic_stored.to_string(),
+            r.peak_rss_mb.map_or(String::new(), |m| format!("{m:.1}")),
+        ]);
+        writeln!(csv, "{}", fields.join(","))?;
+        for h in &r.passes {
+            if let Some(e) = h.error {
+                writeln!(
+                    passes,
+                    "{n},{},{:.6},{:.6},{:.6},{:.8},{:.8},{:.8}",
+                    h.pass,
+                    h.elapsed,
+                    h.radius_global,
+                    h.radius_caustic,
+                    e.relmse,
+                    e.block_err,
+                    e.mean_ratio
+                )?;
+            }
+        }
+    }
+    let path = dir.join("results.csv");
+    std::fs::write(&path, csv).with_context(|| format!("writing {}", path.display()))?;
+    if rows.iter().any(|r| !r.passes.is_empty()) {
+        let path = dir.join("passes.csv");
+        std::fs::write(&path, passes).with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}
+
+pub fn write_plots(dir: &Path, axes: &[Axis], rows: &[Row]) -> anyhow::Result<()> {
+    // Error against time: for each axis with several values, one series per choice of the
+    // other axes, along which this axis varies.
+    for (ai, axis) in axes.iter().enumerate() {
+        if axis.values.len() < 2 {
+            continue;
+        }
+        for metric in ["relmse", "block_err"] {
+            let mut groups: Vec<(Vec<usize>, Series)> = Vec::new();
+            for r in rows {
+                let mut others = r.choice.clone();
+                others.remove(ai);
+                let y = if metric == "relmse" {
+                    r.error.relmse
+                } else {
+                    r.error.block_err
+                };
+                let point = (r.out.stats.times.total, y);
+                let value = axis.values[r.choice[ai]].clone();
+                match groups.iter_mut().find(|(o, _)| *o == others) {
+                    Some((_, s)) => {
+                        s.points.push(point);
+                        s.point_labels.push(value);
+                    }
+                    None => {
+                        let mut label: Vec<String> = axes
+                            .iter()
+                            .enumerate()
+                            .filter(|(j, _)| *j != ai)
+                            .map(|(j, x)| format!("{}={}", x.name, x.values[r.choice[j]]))
+                            .collect();
+                        if label.is_empty() {
+                            label.push("all".into());
+                        }
+                        let label = format!(
+                            "{} ({} {}..{})",
+                            label.join(" "),
+                            axis.name,
+                            axis.values[0],
+                            axis.values.last().unwrap()
+                        );
+                        groups.push((
+                            others,
+                            Series {
+                                label,
+                                points: vec![point],
+                                point_labels: vec![value],
+                            },
+                        ));
+                    }
+                }
+            }
+            let series: Vec<Series> = groups.into_iter().map(|(_, s)| s).collect();
+            let path = dir.join(format!("{metric}_vs_time_by_{}.svg", axis.name));
+            let title = format!("{metric} against render time, varying {}", axis.name);
+            loglog_svg(&path, &title, "seconds", metric, &series)?;
+        }
+    }
+    // ppm: error per pass, with the fitted log-log slope.
+    let ppm_series: Vec<Series> = rows
+        .iter()
+        .filter(|r| r.passes.len() >= 2)
+        .map(|r| {
+            let points: Vec<(f64, f64)> = r
+                .passes
+                .iter()
+                .filter_map(|h| h.error.map(|e| (h.pass as f64, e.relmse)))
+                .collect();
+            // The slope past the first passes' transient, as docs/accuracy.md reports it.
+            let from = if points.len() >= 8 { FIT_FROM_PASS } else { 1 };
+            let tail: Vec<(f64, f64)> = points
+                .iter()
+                .copied()
+                .filter(|p| p.0 >= from as f64)
+                .collect();
+            let slope = loglog_fit(&tail).map_or(String::new(), |(b, _)| {
+                format!(" slope {b:.2} (passes >= {from})")
+            });
+            Series {
+                label: format!("{}{slope}", describe_choice(axes, &r.choice)),
+                points,
+                point_labels: Vec::new(),
+            }
+        })
+        .collect();
+    if !ppm_series.is_empty() {
+        let path = dir.join("ppm_relmse_per_pass.svg");
+        loglog_svg(
+            &path,
+            "ppm: relmse against passes (fitted slope)",
+            "pass",
+            "relmse",
+            &ppm_series,
+        )?;
+    }
+    Ok(())
+}
