@@ -48,6 +48,14 @@ for entry in "${SCENES[@]}"; do
     --time-limit "$t" --grid integrator=raytrace,ppm
 done
 
+# The point-light originals of the twins (a path tracer cannot render their caustics, so
+# there is no Mitsuba reference): against ppm references that sweep renders itself.
+for name in cornell_mirror_glass glass_orange; do
+  rm -rf "$OUT/originals/$name"
+  "$PB" sweep "scenes/$name.json" -o "$OUT/originals/$name" "${SIZE[@]}" --reference-passes 128 \
+    --iterations 16 --grid n=10000,100000 integrator=photon,ppm
+done
+
 # The caustic scene to convergence (issue 4, acceptance 1): 256 passes of 400k global and
 # 2M caustic photons, and one `photon` render with the same photons.
 "$PB" sweep scenes/twins/cornell_mirror_glass_twin.json -o "$OUT/convergence" "${SIZE[@]}" \

@@ -70,6 +70,8 @@ fn measure(scene: &Scene, n: u64, k: usize, runs: usize) -> Row {
         gather_rays: 0,
         width: Some(512),
         height: Some(512),
+        // The seed's workload: caustic photons emitted in every direction.
+        aim_caustics: false,
         ..RenderParams::default()
     };
     let (mut tracing, mut trace, mut build, mut pre, mut cam) =
@@ -154,10 +156,16 @@ fn main() {
         return;
     }
     println!();
-    for (label, global, caustic) in [
-        ("global map", 1_000_000u64, 0u64),
-        ("caustic map", 0, 1_000_000),
-        ("both maps", 1_000_000, 1_000_000),
+    for (label, global, caustic, aim) in [
+        ("global map", 1_000_000u64, 0u64, false),
+        ("caustic map (blind, as the seed)", 0, 1_000_000, false),
+        ("both maps (blind caustics)", 1_000_000, 1_000_000, false),
+        (
+            "caustic map (aimed at specular objects)",
+            0,
+            1_000_000,
+            true,
+        ),
     ] {
         let params = PhotonParams {
             global_photons: global,
@@ -165,6 +173,7 @@ fn main() {
             store: PhotonStore::Indirect,
             max_depth: RenderParams::default().max_depth,
             seed: 1,
+            aim_caustics: aim,
         };
         let mut rates = vec![];
         let mut builds = vec![];
@@ -193,6 +202,7 @@ fn ppm_pass(scene: &Scene, runs: usize) {
         iterations: runs as u32,
         width: Some(512),
         height: Some(512),
+        aim_caustics: false,
         ..RenderParams::ppm_defaults()
     };
     let opts = ppm::PpmOptions {

@@ -74,6 +74,10 @@ pub struct ParamArgs {
     /// ppm: initial radius in scene units [default: median k-NN distance in pass 1].
     #[arg(long)]
     pub radius: Option<f32>,
+    /// Emit caustic photons in every direction (as the seed did) instead of aiming them at
+    /// the mirror and glass objects.
+    #[arg(long)]
+    pub blind_caustics: bool,
 }
 
 #[derive(Args)]
@@ -146,6 +150,7 @@ pub fn params_from_args(a: &ParamArgs) -> anyhow::Result<RenderParams> {
         iterations: a.iterations.unwrap_or(d.iterations),
         alpha: a.alpha,
         radius: a.radius,
+        aim_caustics: !a.blind_caustics,
     };
     params
         .validate()

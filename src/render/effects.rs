@@ -94,7 +94,7 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
         if caustic_map {
             effect(
                 true,
-                "caustic photon map",
+                "caustic photon map, photons aimed at the specular objects' bounds",
                 "specular surfaces can focus light onto diffuse ones",
             )
         } else if !photon {
@@ -164,6 +164,7 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
         store: params.photon_store,
         max_depth: params.max_depth,
         seed: params.seed,
+        aim_caustics: params.aim_caustics,
     };
     Analysis {
         plan,

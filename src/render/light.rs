@@ -161,13 +161,18 @@ impl Light {
         }
     }
 
-    /// Emit a photon: point lights uniformly over the sphere of directions (as the seed did),
-    /// area lights from a uniform point on their surface, cosine-weighted about the normal.
-    pub fn sample_emission(&self, u_pos: Vec2, u_dir: Vec2) -> Emission {
+    /// Where a photon leaves the light: a point light's position, or a uniform point on an
+    /// area light's surface with the normal it emits around.
+    pub fn emission_origin(&self, u_pos: Vec2) -> EmissionOrigin {
         match *self {
-            Light::Point { position, power } => Emission {
-                ray: Ray::new(position, uniform_sphere(u_dir)),
-                flux: power,
+            Light::Point { position, .. } => EmissionOrigin {
+                sp: SurfacePoint {
+                    p: position,
+                    p_error: Vec3A::ZERO,
+                    n: Vec3A::ZERO,
+                    prim: NO_PRIM,
+                },
+                normal: None,
             },
             Light::Sphere {
                 center,
@@ -178,16 +183,14 @@ impl Light {
                 let n = uniform_sphere(u_pos);
                 let local = n * radius;
                 let p = center + local;
-                let sp = SurfacePoint {
-                    p,
-                    p_error: gamma(5) * local.abs() + gamma(1) * p.abs(),
-                    n,
-                    prim,
-                };
-                let dir = Frame::from_normal(n).to_world(cosine_hemisphere(u_dir));
-                Emission {
-                    ray: spawn_ray(&sp, dir),
-                    flux: self.power(),
+                EmissionOrigin {
+                    sp: SurfacePoint {
+                        p,
+                        p_error: gamma(5) * local.abs() + gamma(1) * p.abs(),
+                        n,
+                        prim,
+                    },
+                    normal: Some(n),
                 }
             }
             Light::Quad {
@@ -199,18 +202,56 @@ impl Light {
                 ..
             } => {
                 let (a, b) = (u_pos.x * edge_u, u_pos.y * edge_v);
-                let sp = SurfacePoint {
-                    p: corner + a + b,
-                    p_error: gamma(4) * (corner.abs() + a.abs() + b.abs()),
-                    n,
-                    prim,
-                };
-                let dir = Frame::from_normal(n).to_world(cosine_hemisphere(u_dir));
-                Emission {
-                    ray: spawn_ray(&sp, dir),
-                    flux: self.power(),
+                EmissionOrigin {
+                    sp: SurfacePoint {
+                        p: corner + a + b,
+                        p_error: gamma(4) * (corner.abs() + a.abs() + b.abs()),
+                        n,
+                        prim,
+                    },
+                    normal: Some(n),
                 }
             }
+        }
+    }
+
+    /// Emit a photon: point lights uniformly over the sphere of directions (as the seed did),
+    /// area lights from a uniform point on their surface, cosine-weighted about the normal.
+    pub fn sample_emission(&self, u_pos: Vec2, u_dir: Vec2) -> Emission {
+        let origin = self.emission_origin(u_pos);
+        let dir = match origin.normal {
+            None => uniform_sphere(u_dir),
+            Some(n) => Frame::from_normal(n).to_world(cosine_hemisphere(u_dir)),
+        };
+        Emission {
+            ray: origin.ray(dir),
+            flux: self.power(),
+        }
+    }
+}
+
+/// The start of a photon path on a light.
+pub struct EmissionOrigin {
+    pub sp: SurfacePoint,
+    /// The normal an area light emits around; `None` for a point light (every direction).
+    pub normal: Option<Vec3A>,
+}
+
+impl EmissionOrigin {
+    /// The light's own density of emission directions from here (per steradian): 1/(4 pi)
+    /// for a point light, cos/pi about an area light's normal (0 behind it).
+    pub fn direction_pdf(&self, dir: Vec3A) -> f32 {
+        match self.normal {
+            None => 0.25 * std::f32::consts::FRAC_1_PI,
+            Some(n) => n.dot(dir).max(0.0) * std::f32::consts::FRAC_1_PI,
+        }
+    }
+
+    /// The photon's first ray, along `dir` (robustly off an area light's surface).
+    pub fn ray(&self, dir: Vec3A) -> Ray {
+        match self.normal {
+            None => Ray::new(self.sp.p, dir),
+            Some(_) => spawn_ray(&self.sp, dir),
         }
     }
 }

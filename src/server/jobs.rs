@@ -148,6 +148,7 @@ impl ParamsJson {
             iterations: self.iterations.unwrap_or(d.iterations),
             alpha: self.alpha.unwrap_or(d.alpha),
             radius: self.radius,
+            aim_caustics: true,
         };
         render
             .validate()

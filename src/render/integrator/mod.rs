@@ -78,6 +78,9 @@ pub struct RenderParams {
     /// `ppm`: initial radius of both maps' estimates (scene units); `None`: from the k-NN
     /// radius of the first pass's photons (see `render::ppm::initial_radius`).
     pub radius: Option<f32>,
+    /// Aim caustic photons at the specular objects (`photon/targets.rs`); false emits them
+    /// in every direction, as the seed did (its timing tables are measured that way).
+    pub aim_caustics: bool,
 }
 
 /// Default passes of `ppm`.
@@ -204,6 +207,7 @@ impl Default for RenderParams {
             iterations: 1,
             alpha: 0.7,
             radius: None,
+            aim_caustics: true,
         }
     }
 }

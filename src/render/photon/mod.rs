@@ -9,6 +9,7 @@ mod density;
 mod estimate;
 mod kdtree;
 mod occupancy;
+mod targets;
 mod trace;
 
 pub use density::{Density, DensityScratch, RadiusLookup};
@@ -17,6 +18,7 @@ pub use estimate::{
 };
 pub use kdtree::{KdItem, KdTree, KnnScratch};
 pub use occupancy::OccupancyGrid;
+pub use targets::{CausticTargets, TargetedDirection};
 pub use trace::{PhotonParams, PhotonStore, TraceOutput, build_photon_maps, trace_photons};
 
 use glam::Vec3A;

@@ -54,6 +54,9 @@ pub struct PhotonParams {
     /// Surface interactions followed per photon path.
     pub max_depth: u32,
     pub seed: u64,
+    /// Emit caustic photons only toward the specular objects' bounds (photon/targets.rs);
+    /// false: in every direction, as blindly as global photons.
+    pub aim_caustics: bool,
 }
 
 /// Which map a tracing run fills.
@@ -111,13 +114,15 @@ fn trace(
     scene: &Scene,
     emitted: u64,
     target: Target,
-    max_depth: u32,
-    seed: u64,
+    params: &PhotonParams,
     control: &Control,
     tracker: &crate::render::control::Tracker,
 ) -> Result<TraceOutput, Cancelled> {
+    let (max_depth, seed) = (params.max_depth, params.seed);
+    let aim = params.aim_caustics && target == Target::Caustic;
     let picker = LightPicker::new(&scene.lights);
-    if emitted == 0 || !(picker.total > 0.0) {
+    let nothing_to_aim_at = aim && scene.caustic_targets.is_empty();
+    if emitted == 0 || !(picker.total > 0.0) || nothing_to_aim_at {
         tracker.advance(emitted);
         return Ok(TraceOutput {
             photons: Vec::new(),
@@ -149,6 +154,7 @@ fn trace(
                     target,
                     max_depth,
                     irradiance_point,
+                    aim,
                 };
                 trace_one(scene, &path, &mut s, &mut out);
             }
@@ -160,11 +166,38 @@ fn trace(
     for p in parts {
         photons.extend(p);
     }
+    let unit = if aim {
+        renormalise(&mut photons, unit)
+    } else {
+        unit
+    };
     Ok(TraceOutput {
         photons,
         emitted,
         unit,
     })
+}
+
+/// Aimed caustic photons carry a fraction of a blind photon's flux (the solid angle of their
+/// targets): rescale the stored powers to a mean luminance of 1 and the unit to match, so
+/// that they stay O(1), as the estimators' fixed-point sums expect. The product is unchanged.
+fn renormalise(photons: &mut [Photon], unit: f32) -> f32 {
+    if photons.is_empty() {
+        return unit;
+    }
+    let mean = photons
+        .iter()
+        .map(|p| luminance(p.relative_power()) as f64)
+        .sum::<f64>()
+        / photons.len() as f64;
+    if !(mean > 0.0 && mean.is_finite()) {
+        return unit;
+    }
+    let f = (1.0 / mean) as f32;
+    for p in photons.iter_mut() {
+        p.power = p.power.map(|c| c * f);
+    }
+    unit * mean as f32
 }
 
 /// What every photon path of one tracing run shares, and this path's irradiance-point mark.
@@ -173,6 +206,8 @@ struct PathSetup<'a> {
     target: Target,
     max_depth: u32,
     irradiance_point: bool,
+    /// Aim the photon at the caustic targets.
+    aim: bool,
 }
 
 fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Photon>) {
@@ -181,11 +216,31 @@ fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Pho
         target,
         max_depth,
         irradiance_point,
+        aim,
     } = *path;
     let (li, p_light) = picker.pick(s.next_f32());
     let (u_pos, u_dir) = (s.next_2d(), s.next_2d());
-    let em = scene.lights[li].sample_emission(u_pos, u_dir);
-    // Flux relative to the map's unit, total / emitted: luminance 1 when it leaves the light.
+    let light = &scene.lights[li];
+    let em = if aim {
+        // Aimed at the specular objects (photon/targets.rs), weighted by the light's own
+        // direction pdf over the aiming pdf.
+        let origin = light.emission_origin(u_pos);
+        let td = scene
+            .caustic_targets
+            .sample(origin.sp.p, s.next_f32(), u_dir);
+        let weight = origin.direction_pdf(td.dir) / td.pdf;
+        if !(weight > 0.0) || !weight.is_finite() {
+            return;
+        }
+        crate::render::light::Emission {
+            ray: origin.ray(td.dir),
+            flux: light.power() * weight,
+        }
+    } else {
+        light.sample_emission(u_pos, u_dir)
+    };
+    // Flux relative to the map's unit, total / emitted: luminance 1 when it leaves the light
+    // (on average, for aimed caustic photons).
     let mut power = em.flux / (p_light * picker.total);
     let mut ray = em.ray;
     let mut non_specular_before = false;
@@ -260,8 +315,7 @@ pub fn trace_photons(
         scene,
         params.global_photons,
         Target::Global(params.store),
-        params.max_depth,
-        params.seed,
+        params,
         control,
         &tracker,
     )?;
@@ -269,8 +323,7 @@ pub fn trace_photons(
         scene,
         params.caustic_photons,
         Target::Caustic,
-        params.max_depth,
-        params.seed,
+        params,
         control,
         &tracker,
     )?;

@@ -177,6 +177,8 @@ pub struct Scene {
     /// distant light does not widen every photon search.
     pub geometry_extent: f32,
     pub triangle_count: usize,
+    /// Bounds of the specular objects, which caustic photons are aimed at.
+    pub caustic_targets: crate::render::photon::CausticTargets,
 }
 
 impl Scene {
@@ -320,6 +322,7 @@ impl Scene {
             bounds_max: local(hi),
             geometry_extent,
             triangle_count,
+            caustic_targets: crate::render::photon::CausticTargets::from_desc(desc, origin),
         }
     }
 
