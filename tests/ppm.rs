@@ -46,14 +46,8 @@ fn ppm_params(photons: u64, iterations: u32) -> RenderParams {
 
 fn options(iterations: u32, resume: Option<PpmState>) -> PpmOptions<'static> {
     PpmOptions {
-        stop: Stop {
-            iterations,
-            time_limit: None,
-            target_error: None,
-        },
-        reference: None,
         resume,
-        fingerprint: "test".into(),
+        ..PpmOptions::new(Stop::after(iterations), "test".into())
     }
 }
 
@@ -254,9 +248,8 @@ fn target_error_and_time_limit_stop_early() {
         &params,
         PpmOptions {
             stop: Stop {
-                iterations: 1_000,
-                time_limit: None,
                 target_error: Some(1e9),
+                ..Stop::after(1_000)
             },
             reference: Some(&reference),
             ..options(1_000, None)
@@ -276,9 +269,8 @@ fn target_error_and_time_limit_stop_early() {
         &params,
         PpmOptions {
             stop: Stop {
-                iterations: 1_000,
                 time_limit: Some(1e-9),
-                target_error: None,
+                ..Stop::after(1_000)
             },
             ..options(1_000, None)
         },

@@ -58,16 +58,7 @@ fn peak_bytes(passes: u32) -> usize {
         photon_store: photonbox::render::PhotonStore::All,
         ..RenderParams::ppm_defaults()
     };
-    let opts = PpmOptions {
-        stop: Stop {
-            iterations: passes,
-            time_limit: None,
-            target_error: None,
-        },
-        reference: None,
-        resume: None,
-        fingerprint: String::new(),
-    };
+    let opts = PpmOptions::new(Stop::after(passes), String::new());
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()

@@ -205,16 +205,7 @@ fn ppm_pass(scene: &Scene, runs: usize) {
         aim_caustics: false,
         ..RenderParams::ppm_defaults()
     };
-    let opts = ppm::PpmOptions {
-        stop: ppm::Stop {
-            iterations: params.iterations,
-            time_limit: None,
-            target_error: None,
-        },
-        reference: None,
-        resume: None,
-        fingerprint: String::new(),
-    };
+    let opts = ppm::PpmOptions::new(ppm::Stop::after(params.iterations), String::new());
     let out = ppm::render_ppm(scene, &params, opts, &Control::none(), &mut |_| {
         std::ops::ControlFlow::Continue(())
     })

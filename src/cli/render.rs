@@ -201,9 +201,8 @@ pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
     if a.threads == Some(0) {
         return Err(bad("--threads must be at least 1"));
     }
-    let source = std::fs::read(&a.scene)
-        .map_err(|e| bad(format!("{}: cannot read: {e}", a.scene.display())))?;
-    let scene = Scene::load(&a.scene).map_err(|e| bad(format!("{}: {e}", a.scene.display())))?;
+    let (scene, source) = Scene::load_with_source(&a.scene)
+        .map_err(|e| bad(format!("{}: {e}", a.scene.display())))?;
     let reference = a.reference.as_deref().map(read_reference).transpose()?;
     let resume = match &a.resume {
         Some(p) => {
@@ -232,21 +231,21 @@ pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
         progress: Some(&callback),
     };
     let out = if is_ppm {
+        let stop = Stop {
+            time_limit: a.time_limit,
+            target_error: a.target_error,
+            ..Stop::after(params.iterations)
+        };
         let opts = PpmOptions {
-            stop: Stop {
-                iterations: params.iterations,
-                time_limit: a.time_limit,
-                target_error: a.target_error,
-            },
             reference: reference.as_ref(),
             resume,
-            fingerprint: ppm::fingerprint(&source, &params),
+            ..PpmOptions::new(stop, ppm::fingerprint(source.as_bytes(), &params))
         };
         let mut on_pass = |state: &PpmState| {
             if let Err(e) = checkpoint(&a, state) {
                 eprintln!("photonbox: warning: checkpoint: {e:#}");
             }
-            if let (false, Some(h)) = (terminal, state.history.last())
+            if let (false, Some(h)) = (terminal, &state.last)
                 && let Some(e) = h.error
             {
                 eprintln!("pass {}: {:.2}s {}", h.pass, h.elapsed, describe(&e));
@@ -304,23 +303,16 @@ pub fn describe(e: &ImageError) -> String {
 fn write_outputs(a: &RenderArgs, out: &RenderOutput) -> anyhow::Result<()> {
     write_images(a, &out.image)?;
     if let Some(path) = &a.stats {
-        let json = serde_json::to_string_pretty(&out.stats)?;
-        write_atomically(path, (json + "\n").as_bytes())?;
+        let json = serde_json::to_string_pretty(&out.stats)? + "\n";
+        output::write_atomically(path, |t| std::fs::write(t, &json))
+            .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())
 }
 
 fn write_images(a: &RenderArgs, image: &Image) -> anyhow::Result<()> {
-    let png = tmp_name(&a.output);
-    output::write_png(image, a.exposure, &png)
-        .with_context(|| format!("writing {}", a.output.display()))?;
-    std::fs::rename(&png, &a.output).with_context(|| format!("writing {}", a.output.display()))?;
-    if let Some(exr) = &a.exr {
-        let tmp = tmp_name(exr);
-        output::write_exr(image, &tmp).with_context(|| format!("writing {}", exr.display()))?;
-        std::fs::rename(&tmp, exr).with_context(|| format!("writing {}", exr.display()))?;
-    }
-    Ok(())
+    output::write_images(image, a.exposure, &a.output, a.exr.as_deref())
+        .with_context(|| format!("writing {}", a.output.display()))
 }
 
 /// After a ppm pass: the preview images and the state, each replaced atomically, so that
@@ -330,26 +322,7 @@ fn checkpoint(a: &RenderArgs, state: &PpmState) -> anyhow::Result<()> {
         return Ok(());
     };
     write_images(a, &state.image())?;
-    let mut buf = Vec::new();
-    state.save(&mut buf)?;
-    write_atomically(path, &buf)
-}
-
-/// A temporary name beside `path` that keeps its extension (the image writers go by it).
-fn tmp_name(path: &Path) -> PathBuf {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("tmp");
-    path.with_extension(format!("partial.{ext}"))
-}
-
-/// Write through a temporary name, synced, then renamed: a crash leaves the old file or the
-/// new one, never a torn one.
-fn write_atomically(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    use std::io::Write;
-    let tmp = tmp_name(path);
-    let mut f =
-        std::fs::File::create(&tmp).with_context(|| format!("writing {}", path.display()))?;
-    f.write_all(bytes)
-        .and_then(|_| f.sync_all())
-        .with_context(|| format!("writing {}", path.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))
+    state
+        .save_file(path)
+        .with_context(|| format!("writing {}", path.display()))
 }

@@ -179,42 +179,42 @@ pub fn run_sweep(a: SweepArgs) -> anyhow::Result<()> {
         }
         all_params.push(params_from_args(&pa)?);
     }
-    let source = std::fs::read(&a.scene)
-        .map_err(|e| bad(format!("{}: cannot read: {e}", a.scene.display())))?;
     let scene = Scene::load(&a.scene).map_err(|e| bad(format!("{}: {e}", a.scene.display())))?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let reference = match &a.reference {
         Some(p) => read_reference(p)?,
-        None => render_reference(&a, &scene, &source)?,
+        None => render_reference(&a, &scene)?,
     };
     let mut rows = Vec::new();
     for (c, params) in combos.iter().zip(&all_params) {
         let label = describe_choice(&axes, c);
         eprintln!("sweep: {label}");
         reset_peak_rss();
-        let (out, passes) = if params.integrator == IntegratorKind::Ppm {
-            let opts = PpmOptions {
-                stop: Stop {
-                    iterations: params.iterations,
-                    time_limit: a.time_limit,
-                    target_error: None,
-                },
-                reference: Some(&reference),
-                resume: None,
-                fingerprint: ppm::fingerprint(&source, params),
+        let mut out = if params.integrator == IntegratorKind::Ppm {
+            // Through render_ppm, for the error after every pass.
+            let stop = Stop {
+                time_limit: a.time_limit,
+                ..Stop::after(params.iterations)
             };
-            let o = ppm::render_ppm(&scene, params, opts, &Control::none(), &mut |_| {
+            let opts = PpmOptions {
+                reference: Some(&reference),
+                ..PpmOptions::new(stop, String::new())
+            };
+            ppm::render_ppm(&scene, params, opts, &Control::none(), &mut |_| {
                 ControlFlow::Continue(())
             })
-            .map_err(|e| bad(format!("{label}: {e}")))?;
-            let passes = o.state.history.clone();
-            (o.output, passes)
+            .map_err(|e| bad(format!("{label}: {e}")))?
+            .output
         } else {
-            let out = render::render(&scene, params, &Control::none()).context("render")?;
-            (out, Vec::new())
+            render::render(&scene, params, &Control::none()).context("render")?
         };
-        let error =
-            compare(&out.image, &reference).map_err(|e| bad(format!("--reference: {e}")))?;
+        let error = match out.stats.error {
+            Some(e) => e,
+            None => {
+                compare(&out.image, &reference).map_err(|e| bad(format!("--reference: {e}")))?
+            }
+        };
+        out.stats.error = Some(error);
         eprintln!(
             "  {:.2}s  {}",
             out.stats.times.total,
@@ -223,8 +223,6 @@ pub fn run_sweep(a: SweepArgs) -> anyhow::Result<()> {
         rows.push(Row {
             choice: c.clone(),
             out,
-            error,
-            passes,
             peak_rss_mb: peak_rss_mb(),
         });
     }
@@ -238,7 +236,7 @@ pub fn run_sweep(a: SweepArgs) -> anyhow::Result<()> {
 const REFERENCE_SEED_OFFSET: u64 = 1_000_003;
 
 /// Without --reference: a long ppm render at the sweep's resolution, saved beside the results.
-fn render_reference(a: &SweepArgs, scene: &Scene, source: &[u8]) -> anyhow::Result<Image> {
+fn render_reference(a: &SweepArgs, scene: &Scene) -> anyhow::Result<Image> {
     let mut pa = a.params.clone();
     pa.integrator = IntegratorArg::Ppm;
     pa.iterations = Some(a.reference_passes);
@@ -256,24 +254,10 @@ fn render_reference(a: &SweepArgs, scene: &Scene, source: &[u8]) -> anyhow::Resu
         path.display()
     );
     let t = Instant::now();
-    let opts = PpmOptions {
-        stop: Stop {
-            iterations: params.iterations,
-            time_limit: None,
-            target_error: None,
-        },
-        reference: None,
-        resume: None,
-        fingerprint: ppm::fingerprint(source, &params),
-    };
-    let o = ppm::render_ppm(scene, &params, opts, &Control::none(), &mut |_| {
-        ControlFlow::Continue(())
-    })
-    .map_err(|e| bad(format!("reference: {e}")))?;
-    output::write_exr(&o.output.image, &path)
-        .with_context(|| format!("writing {}", path.display()))?;
+    let out = render::render(scene, &params, &Control::none()).context("reference")?;
+    output::write_exr(&out.image, &path).with_context(|| format!("writing {}", path.display()))?;
     eprintln!("sweep: reference done in {:.1}s", t.elapsed().as_secs_f64());
-    Ok(o.output.image)
+    Ok(out.image)
 }
 
 /// Linux: reset the process's peak resident set (VmHWM) so that it measures the next render.

@@ -14,13 +14,52 @@ use photonbox::render::ppm::PassStats;
 /// The per-pass error slope is fitted from this pass on (when there are 8 or more).
 const FIT_FROM_PASS: u32 = 4;
 
-/// One rendered combination.
+/// One rendered combination; `out.stats.error` is its error against the reference.
 pub struct Row {
     pub choice: Vec<usize>,
     pub out: RenderOutput,
-    pub error: ImageError,
-    pub passes: Vec<PassStats>,
     pub peak_rss_mb: Option<f64>,
+}
+
+impl Row {
+    fn error(&self) -> ImageError {
+        self.out.stats.error.unwrap_or_default()
+    }
+
+    /// The ppm passes (none for other integrators).
+    fn passes(&self) -> &[PassStats] {
+        self.out.stats.ppm.as_ref().map_or(&[], |p| &p.history)
+    }
+
+    /// results.csv's columns after the grid's, as (name, value).
+    fn fields(&self) -> Vec<(&'static str, String)> {
+        let s = &self.out.stats;
+        let (p, t, e) = (&s.params, &s.times, self.error());
+        vec![
+            ("integrator", p.integrator.clone()),
+            ("photons", p.photons.to_string()),
+            ("caustic_photons", p.caustic_photons.to_string()),
+            ("k", p.k.to_string()),
+            ("gather_rays", p.gather_rays.to_string()),
+            ("spp", p.spp.to_string()),
+            ("passes", s.ppm.as_ref().map_or(1, |x| x.passes).to_string()),
+            ("photon_trace_s", format!("{:.6}", t.photon_trace)),
+            ("build_maps_s", format!("{:.6}", t.build_maps)),
+            ("precompute_s", format!("{:.6}", t.precompute)),
+            ("render_s", format!("{:.6}", t.render)),
+            ("total_s", format!("{:.6}", t.total)),
+            ("relmse", format!("{:.8}", e.relmse)),
+            ("block_err", format!("{:.8}", e.block_err)),
+            ("mean_ratio", format!("{:.8}", e.mean_ratio)),
+            ("global_stored", s.photons.global_stored.to_string()),
+            ("caustic_stored", s.photons.caustic_stored.to_string()),
+            (
+                "peak_rss_mb",
+                self.peak_rss_mb
+                    .map_or(String::new(), |m| format!("{m:.1}")),
+            ),
+        ]
+    }
 }
 
 pub fn describe_choice(axes: &[Axis], c: &[usize]) -> String {
@@ -31,70 +70,28 @@ pub fn describe_choice(axes: &[Axis], c: &[usize]) -> String {
         .join(" ")
 }
 
-/// The CSV columns of results.csv, after the grid's parameters.
-pub const RESULT_COLUMNS: &[&str] = &[
-    "integrator",
-    "photons",
-    "caustic_photons",
-    "k",
-    "gather_rays",
-    "spp",
-    "passes",
-    "photon_trace_s",
-    "build_maps_s",
-    "precompute_s",
-    "render_s",
-    "total_s",
-    "relmse",
-    "block_err",
-    "mean_ratio",
-    "global_stored",
-    "caustic_stored",
-    "peak_rss_mb",
-];
-
 pub fn write_results(dir: &Path, axes: &[Axis], rows: &[Row]) -> anyhow::Result<()> {
     let mut csv = String::new();
-    let header: Vec<String> = axes
-        .iter()
-        .map(|x| format!("grid_{}", x.name))
-        .chain(RESULT_COLUMNS.iter().map(|s| s.to_string()))
-        .collect();
-    writeln!(csv, "{}", header.join(","))?;
+    if let Some(first) = rows.first() {
+        let header: Vec<String> = axes
+            .iter()
+            .map(|x| format!("grid_{}", x.name))
+            .chain(first.fields().into_iter().map(|(name, _)| name.to_string()))
+            .collect();
+        writeln!(csv, "{}", header.join(","))?;
+    }
     let mut passes = String::from(
         "combination,pass,elapsed_s,radius_global,radius_caustic,relmse,block_err,mean_ratio\n",
     );
     for (n, r) in rows.iter().enumerate() {
-        let s = &r.out.stats;
-        let p = &s.params;
-        let t = &s.times;
         let mut fields: Vec<String> = axes
             .iter()
             .zip(&r.choice)
             .map(|(x, &i)| x.values[i].clone())
             .collect();
-        fields.extend([
-            p.integrator.clone(),
-            p.photons.to_string(),
-            p.caustic_photons.to_string(),
-            p.k.to_string(),
-            p.gather_rays.to_string(),
-            p.spp.to_string(),
-            s.ppm.as_ref().map_or(1, |x| x.passes).to_string(),
-            format!("{:.6}", t.photon_trace),
-            format!("{:.6}", t.build_maps),
-            format!("{:.6}", t.precompute),
-            format!("{:.6}", t.render),
-            format!("{:.6}", t.total),
-            format!("{:.8}", r.error.relmse),
-            format!("{:.8}", r.error.block_err),
-            format!("{:.8}", r.error.mean_ratio),
-            s.photons.global_stored.to_string(),
-            s.photons.caustic_stored.to_string(),
-            r.peak_rss_mb.map_or(String::new(), |m| format!("{m:.1}")),
-        ]);
+        fields.extend(r.fields().into_iter().map(|(_, v)| v));
         writeln!(csv, "{}", fields.join(","))?;
-        for h in &r.passes {
+        for h in r.passes() {
             if let Some(e) = h.error {
                 writeln!(
                     passes,
@@ -112,7 +109,7 @@ pub fn write_results(dir: &Path, axes: &[Axis], rows: &[Row]) -> anyhow::Result<
     }
     let path = dir.join("results.csv");
     std::fs::write(&path, csv).with_context(|| format!("writing {}", path.display()))?;
-    if rows.iter().any(|r| !r.passes.is_empty()) {
+    if rows.iter().any(|r| !r.passes().is_empty()) {
         let path = dir.join("passes.csv");
         std::fs::write(&path, passes).with_context(|| format!("writing {}", path.display()))?;
     }
@@ -132,9 +129,9 @@ pub fn write_plots(dir: &Path, axes: &[Axis], rows: &[Row]) -> anyhow::Result<()
                 let mut others = r.choice.clone();
                 others.remove(ai);
                 let y = if metric == "relmse" {
-                    r.error.relmse
+                    r.error().relmse
                 } else {
-                    r.error.block_err
+                    r.error().block_err
                 };
                 let point = (r.out.stats.times.total, y);
                 let value = axis.values[r.choice[ai]].clone();
@@ -180,10 +177,10 @@ pub fn write_plots(dir: &Path, axes: &[Axis], rows: &[Row]) -> anyhow::Result<()
     // ppm: error per pass, with the fitted log-log slope.
     let ppm_series: Vec<Series> = rows
         .iter()
-        .filter(|r| r.passes.len() >= 2)
+        .filter(|r| r.passes().len() >= 2)
         .map(|r| {
             let points: Vec<(f64, f64)> = r
-                .passes
+                .passes()
                 .iter()
                 .filter_map(|h| h.error.map(|e| (h.pass as f64, e.relmse)))
                 .collect();

@@ -1,6 +1,6 @@
 //! Writing images: 8-bit sRGB PNG for eyes, 32-bit float linear OpenEXR for measurements.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use image::{DynamicImage, ImageFormat, Rgb32FImage, RgbImage};
 
@@ -50,6 +50,40 @@ pub fn read_image(path: &Path) -> image::ImageResult<Image> {
         height,
         pixels,
     })
+}
+
+/// A temporary name beside `path` that keeps its extension (image writers go by it).
+fn partial_name(path: &Path) -> PathBuf {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("tmp");
+    path.with_extension(format!("partial.{ext}"))
+}
+
+/// Write `path` through a temporary file beside it: `write` fills the temporary file, which
+/// is synced to disk and then renamed over `path`. A crash leaves the old file or the new
+/// one, never a torn one.
+pub fn write_atomically<E: From<std::io::Error>>(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), E>,
+) -> Result<(), E> {
+    let tmp = partial_name(path);
+    write(&tmp)?;
+    std::fs::File::open(&tmp)?.sync_all()?;
+    std::fs::rename(&tmp, path)?;
+    Ok(())
+}
+
+/// The PNG of `image` and, if asked, its EXR, each written atomically.
+pub fn write_images(
+    image: &Image,
+    exposure: f32,
+    png: &Path,
+    exr: Option<&Path>,
+) -> image::ImageResult<()> {
+    write_atomically(png, |t| write_png(image, exposure, t))?;
+    if let Some(exr) = exr {
+        write_atomically(exr, |t| write_exr(image, t))?;
+    }
+    Ok(())
 }
 
 /// Read a linear OpenEXR (or any format `image` reads as float RGB) as an [`Image`].

@@ -2,16 +2,18 @@
 //! irradiance, run the camera pass. The maps are a separate value so that a caller (the
 //! server's cache) can reuse them for another camera, resolution, k or spp.
 
+use std::ops::ControlFlow;
 use std::time::Instant;
 
 use crate::render::camera::Camera;
 use crate::render::control::{Cancelled, Control};
 use crate::render::effects::analyse;
 use crate::render::film::{Image, render_film};
-use crate::render::integrator::{RenderParams, Shader};
+use crate::render::integrator::{IntegratorKind, RenderParams, Shader};
 use crate::render::photon::{
     CausticLookup, Density, IrradianceCache, Photon, PhotonMap, PhotonMaps, build_photon_maps,
 };
+use crate::render::ppm::{PpmError, PpmOptions, Stop, render_ppm};
 use crate::render::scene::Scene;
 use crate::render::stats::{ParamsEcho, PhotonCounts, Radius, RenderStats, Times};
 
@@ -38,12 +40,23 @@ pub fn trace_maps(
     build_photon_maps(scene, &analysis.photon_params, control)
 }
 
-/// A full render: photon maps, then the camera pass.
+/// A full render: photon maps, then the camera pass; for `ppm`, `params.iterations`
+/// progressive passes (see `render::ppm` for checkpoints, references and other stops).
 pub fn render(
     scene: &Scene,
     params: &RenderParams,
     control: &Control,
 ) -> Result<RenderOutput, Cancelled> {
+    if params.integrator == IntegratorKind::Ppm {
+        let opts = PpmOptions::new(Stop::after(params.iterations), String::new());
+        return match render_ppm(scene, params, opts, control, &mut |_| {
+            ControlFlow::Continue(())
+        }) {
+            Ok(out) => Ok(out.output),
+            Err(PpmError::Cancelled(c)) => Err(c),
+            Err(PpmError::Input(m)) => unreachable!("no state or reference to refuse: {m}"),
+        };
+    }
     let maps = trace_maps(scene, params, control)?;
     render_with_maps(scene, &maps, params, control)
 }

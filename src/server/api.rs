@@ -18,7 +18,9 @@ use serde_json::{Value, json};
 
 use super::auth::{self, User};
 use super::error::ApiError;
-use super::jobs::{JobNeeds, JobRequest, ParamsJson, from_json, resolve_scene, result_path};
+use super::jobs::{
+    JobNeeds, JobRequest, ParamsJson, from_json, remove_results, resolve_scene, result_path,
+};
 use super::state::Snapshot;
 use super::store::{JobRow, Status, now};
 use super::{AppRef, metrics};
@@ -191,9 +193,16 @@ async fn submit_job(
     let params_json: ParamsJson = from_json(req.params.unwrap_or(json!({})), "params")?;
     let params = params_json.to_params()?;
     let limits = &app.config.limits;
-    let scene = resolve_scene(&app.catalog, req.scene, req.scene_name.as_deref())?;
-    let needs = JobNeeds::estimate(&scene.desc, &params.render);
-    needs.check(&params.render, limits)?;
+    // Reading and parsing the scene (and its meshes) is blocking work.
+    let (app2, render) = (app.clone(), params.render.clone());
+    let (scene_name, scene_value) = (req.scene_name.clone(), req.scene);
+    let (scene, needs) = blocking(move || {
+        let scene = resolve_scene(&app2.catalog, scene_value, scene_name.as_deref())?;
+        let needs = JobNeeds::estimate(&scene.desc, &render);
+        needs.check(&render, &app2.config.limits)?;
+        Ok((scene, needs))
+    })
+    .await?;
     if app.jobs.queued_of(user.id) >= limits.max_queued_per_user {
         return Err(ApiError::new(
             StatusCode::TOO_MANY_REQUESTS,
@@ -221,11 +230,8 @@ async fn submit_job(
         stats_json: None,
     };
     // Durable before it is acknowledged.
-    let app2 = app.clone();
-    let row2 = row.clone();
-    row.id = tokio::task::spawn_blocking(move || app2.store.insert_job(&row2))
-        .await
-        .map_err(|e| ApiError::internal(e.to_string()))??;
+    let (app2, row2) = (app.clone(), row.clone());
+    row.id = blocking(move || Ok(app2.store.insert_job(&row2)?)).await?;
     let id = row.id;
     app.jobs.insert(row);
     app.scheduler.enqueue(id, user.id, needs.memory_bytes);
@@ -251,22 +257,25 @@ async fn delete_job(
     let id = row.id;
     if row.status.is_final() {
         let app2 = app.clone();
-        tokio::task::spawn_blocking(move || app2.store.delete_job(id))
-            .await
-            .map_err(|e| ApiError::internal(e.to_string()))??;
+        blocking(move || {
+            app2.store.delete_job(id)?;
+            remove_results(&app2.config.data, id, &["png", "exr", "ppmstate"]);
+            Ok(())
+        })
+        .await?;
         app.jobs.remove(id);
-        for ext in ["png", "exr", "ppmstate"] {
-            let _ = std::fs::remove_file(result_path(&app.config.data, id, ext));
-        }
         return Ok(StatusCode::NO_CONTENT.into_response());
     }
     if app.scheduler.dequeue(id) {
-        app.commit_job(id, |r| {
-            r.status = Status::Cancelled;
-            r.finished = Some(now());
-        });
-        // A progressive job re-queued by a restart has a saved state it will not resume.
-        let _ = std::fs::remove_file(result_path(&app.config.data, id, "ppmstate"));
+        let app2 = app.clone();
+        blocking(move || {
+            app2.commit_job(id, |r| {
+                r.status = Status::Cancelled;
+                r.finished = Some(now());
+            });
+            Ok(())
+        })
+        .await?;
         return Ok(Json(json!({ "id": id, "status": "cancelled" })).into_response());
     }
     if app.scheduler.cancel_running(id) {
@@ -421,4 +430,13 @@ async fn metrics_text(State(app): State<AppRef>) -> Response {
         metrics::render(&app),
     )
         .into_response()
+}
+
+/// Run blocking work (SQLite, file reads, scene parsing) off the async worker threads.
+async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))?
 }

@@ -102,17 +102,6 @@ impl ParamsJson {
         } else {
             RenderParams::default()
         };
-        if integrator != IntegratorKind::Ppm {
-            for (field, set) in [
-                ("params.iterations", self.iterations.is_some()),
-                ("params.alpha", self.alpha.is_some()),
-                ("params.radius", self.radius.is_some()),
-            ] {
-                if set {
-                    return Err(ApiError::invalid(field, "only for integrator ppm"));
-                }
-            }
-        }
         let photon_store = match self.photon_store.as_deref() {
             None | Some("indirect") => PhotonStore::Indirect,
             Some("all") => PhotonStore::All,
@@ -237,49 +226,47 @@ impl JobNeeds {
     }
 
     pub fn check(&self, p: &RenderParams, limits: &Limits) -> Result<(), ApiError> {
-        if self.pixels > limits.max_pixels {
-            return Err(ApiError::invalid(
+        // (field, what the job asks, the limit, what is counted)
+        let counts: [(&str, u64, u64, &str); 6] = [
+            (
                 "params.width",
-                format!(
-                    "width*height = {} exceeds the limit of {} pixels",
-                    self.pixels, limits.max_pixels
-                ),
-            ));
-        }
-        for (field, n) in [
-            ("params.photons", p.photons),
-            ("params.caustic_photons", p.caustic_photons),
-        ] {
-            if n > limits.max_photons {
+                self.pixels,
+                limits.max_pixels,
+                "pixels (width*height)",
+            ),
+            ("params.photons", p.photons, limits.max_photons, "photons"),
+            (
+                "params.caustic_photons",
+                p.caustic_photons,
+                limits.max_photons,
+                "photons",
+            ),
+            (
+                "params.k",
+                p.k as u64,
+                limits.max_k as u64,
+                "neighbours (k)",
+            ),
+            (
+                "params.iterations",
+                p.iterations as u64,
+                limits.max_iterations as u64,
+                "passes",
+            ),
+            (
+                "scene.objects",
+                self.triangles as u64,
+                limits.max_triangles as u64,
+                "triangles",
+            ),
+        ];
+        for (field, n, limit, what) in counts {
+            if n > limit {
                 return Err(ApiError::invalid(
                     field,
-                    format!("{n} exceeds the limit of {} photons", limits.max_photons),
+                    format!("{n} {what} exceed the limit of {limit}"),
                 ));
             }
-        }
-        if p.k > limits.max_k {
-            return Err(ApiError::invalid(
-                "params.k",
-                format!("{} exceeds the limit of {}", p.k, limits.max_k),
-            ));
-        }
-        if p.iterations > limits.max_iterations {
-            return Err(ApiError::invalid(
-                "params.iterations",
-                format!(
-                    "{} exceeds the limit of {} passes",
-                    p.iterations, limits.max_iterations
-                ),
-            ));
-        }
-        if self.triangles > limits.max_triangles {
-            return Err(ApiError::invalid(
-                "scene.objects",
-                format!(
-                    "{} triangles exceed the limit of {}",
-                    self.triangles, limits.max_triangles
-                ),
-            ));
         }
         if self.memory_bytes > limits.memory_bytes {
             return Err(ApiError::invalid(
@@ -367,9 +354,13 @@ pub fn resolve_scene(
             let path = catalog.path(name).ok_or_else(|| {
                 ApiError::invalid("scene_name", format!("no built-in scene named {name:?}"))
             })?;
-            let desc = SceneDesc::load(&path)
-                .map_err(|e| ApiError::internal(format!("built-in scene {name}: {e}")))?;
-            let json = catalog.json(name).unwrap_or(Value::Null);
+            let internal = |e: &dyn std::fmt::Display| {
+                ApiError::internal(format!("built-in scene {name}: {e}"))
+            };
+            let text = std::fs::read_to_string(&path).map_err(|e| internal(&e))?;
+            let json: Value = serde_json::from_str(&text).map_err(|e| internal(&e))?;
+            let desc =
+                SceneDesc::from_value(json.clone(), path.parent()).map_err(|e| internal(&e))?;
             Ok(ResolvedScene {
                 desc,
                 json,
@@ -417,7 +408,16 @@ pub fn cache_key(scene_json: &Value, photon_params: &PhotonParams) -> String {
     super::auth::sha256_hex(text.as_bytes())
 }
 
-/// Where a finished job's image lives.
+/// Where a job's result files live: `png` and `exr` (the final image, or the latest
+/// preview), and `ppmstate` (a progressive job's running state, while it may resume).
 pub fn result_path(data: &Path, id: i64, ext: &str) -> PathBuf {
     data.join("results").join(format!("{id}.{ext}"))
+}
+
+/// Remove a job's result files (`which`: extensions, see [`result_path`]); missing ones are
+/// fine.
+pub fn remove_results(data: &Path, id: i64, which: &[&str]) {
+    for ext in which {
+        let _ = std::fs::remove_file(result_path(data, id, ext));
+    }
 }

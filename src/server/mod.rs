@@ -91,19 +91,18 @@ pub fn add_user(data: &Path, name: &str, admin: bool) -> anyhow::Result<String> 
     Ok(token)
 }
 
-/// Write the admin token beside the store, readable by its owner only.
+/// Write the admin token beside the store, readable by its owner only (atomically: a crash
+/// never leaves an empty token file).
 fn write_admin_token(data: &Path, token: &str) -> anyhow::Result<()> {
     let path = data.join("admin-token");
-    let mut opts = std::fs::OpenOptions::new();
-    opts.write(true).create(true).truncate(true);
-    #[cfg(unix)]
-    std::os::unix::fs::OpenOptionsExt::mode(&mut opts, 0o600);
-    let mut f = opts
-        .open(&path)
-        .with_context(|| format!("writing {}", path.display()))?;
-    f.write_all(token.as_bytes())?;
-    f.sync_all()?;
-    Ok(())
+    crate::render::output::write_atomically(&path, |tmp| {
+        let mut opts = std::fs::OpenOptions::new();
+        opts.write(true).create(true).truncate(true);
+        #[cfg(unix)]
+        std::os::unix::fs::OpenOptionsExt::mode(&mut opts, 0o600);
+        opts.open(tmp)?.write_all(token.as_bytes())
+    })
+    .with_context(|| format!("writing {}", path.display()))
 }
 
 impl App {
@@ -165,6 +164,10 @@ impl App {
         f(&mut row);
         if let Err(e) = self.store.update_job(&row) {
             tracing::error!("job {id}: store: {e}");
+        }
+        if row.status.is_final() {
+            // A progressive job's saved state is kept only while the job may resume.
+            jobs::remove_results(&self.config.data, id, &["ppmstate"]);
         }
         self.jobs.publish(row.clone()).then_some(row)
     }

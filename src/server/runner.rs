@@ -2,7 +2,6 @@
 //! cache or trace them, render, write the images, and record the outcome. Progress goes to
 //! the job's watch channel; a panic inside the render fails that job only.
 
-use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -71,10 +70,6 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
     app.metrics.add_render_seconds(t0.elapsed().as_secs_f64());
     let requeue = matches!(result, Err(Failure::Cancelled)) && app.scheduler.is_stopping()
         || matches!(result, Err(Failure::Yielded));
-    if result.is_err() && !requeue {
-        // A progressive render's saved state is only kept for a job that will resume.
-        let _ = std::fs::remove_file(result_path(&app.config.data, id, "ppmstate"));
-    }
     app.commit_job(id, |r| match &result {
         Ok(stats) => {
             r.status = Status::Done;
@@ -210,48 +205,34 @@ fn execute(
         .start_handler(|_| lower_priority())
         .build()
         .map_err(|e| bad(format!("starting render threads: {e}")))?;
-    if p.integrator == IntegratorKind::Ppm {
+    let (out, outcome, key) = if p.integrator == IntegratorKind::Ppm {
+        let scene_json = resolved.json.to_string();
         let out = pool.install(|| {
-            render_progressive(
-                app,
-                id,
-                &resolved.json.to_string(),
-                &scene,
-                &params,
-                &control,
-                &live,
-            )
+            render_progressive(app, id, &scene_json, &scene, &params, &control, &live)
         })?;
-        drop(pool);
-        let mut stats = serde_json::to_value(&out.stats).map_err(|e| bad(e.to_string()))?;
-        stats["photons"]["traced_by_this_job"] =
-            json!(out.stats.photons.global_emitted + out.stats.photons.caustic_emitted);
-        stats["cache"] = json!({ "photon_maps": CacheOutcome::NotNeeded.as_str() });
-        stats["params"]["exposure"] = json!(params.exposure);
-        return Ok(stats);
-    }
-    let (out, outcome, key) = pool.install(|| -> Result<_, Failure> {
-        let analysis = analyse(&scene, p);
-        let pp = analysis.photon_params;
-        let key = cache_key(&resolved.json, &pp);
-        let (maps, outcome) = if pp.global_photons + pp.caustic_photons == 0 {
-            let maps = build_photon_maps(&scene, &pp, &control)?;
-            (Arc::new(maps), CacheOutcome::NotNeeded)
-        } else {
-            app.cache
-                .get_or_build(&key, cancel, || build_photon_maps(&scene, &pp, &control))?
-        };
-        let out = render_with_maps(&scene, &maps, p, &control)?;
-        Ok((out, outcome, key))
-    })?;
+        (out, CacheOutcome::NotNeeded, None)
+    } else {
+        pool.install(|| -> Result<_, Failure> {
+            let analysis = analyse(&scene, p);
+            let pp = analysis.photon_params;
+            let key = cache_key(&resolved.json, &pp);
+            let (maps, outcome) = if pp.global_photons + pp.caustic_photons == 0 {
+                let maps = build_photon_maps(&scene, &pp, &control)?;
+                (Arc::new(maps), CacheOutcome::NotNeeded)
+            } else {
+                app.cache
+                    .get_or_build(&key, cancel, || build_photon_maps(&scene, &pp, &control))?
+            };
+            let out = render_with_maps(&scene, &maps, p, &control)?;
+            Ok((out, outcome, Some(key)))
+        })?
+    };
     drop(pool);
 
     let png = result_path(&app.config.data, id, "png");
     let exr = result_path(&app.config.data, id, "exr");
-    write_atomically(&png, |tmp| {
-        output::write_png(&out.image, params.exposure, tmp)
-    })?;
-    write_atomically(&exr, |tmp| output::write_exr(&out.image, tmp))?;
+    output::write_images(&out.image, params.exposure, &png, Some(&exr))
+        .map_err(|e| bad(format!("writing the result images: {e}")))?;
 
     let mut stats = serde_json::to_value(&out.stats).map_err(|e| bad(e.to_string()))?;
     if outcome == CacheOutcome::Hit {
@@ -261,12 +242,19 @@ fn execute(
         let t = &out.stats.times;
         stats["times"]["total"] = json!(t.precompute + t.render);
     }
+    // A job that did not use the cache (raytrace traces nothing; ppm traces its own maps)
+    // traced what it reports; a cache hit traced nothing.
     let traced = match outcome {
-        CacheOutcome::Miss => out.stats.photons.global_emitted + out.stats.photons.caustic_emitted,
-        _ => 0,
+        CacheOutcome::Hit => 0,
+        CacheOutcome::Miss | CacheOutcome::NotNeeded => {
+            out.stats.photons.global_emitted + out.stats.photons.caustic_emitted
+        }
     };
     stats["photons"]["traced_by_this_job"] = json!(traced);
-    stats["cache"] = json!({ "photon_maps": outcome.as_str(), "key": &key[..16] });
+    stats["cache"] = match &key {
+        Some(key) => json!({ "photon_maps": outcome.as_str(), "key": &key[..16] }),
+        None => json!({ "photon_maps": outcome.as_str() }),
+    };
     stats["params"]["exposure"] = json!(params.exposure);
     Ok(stats)
 }
@@ -292,35 +280,23 @@ fn render_progressive(
         .and_then(|b| PpmState::load(&b[..]).ok())
         .filter(|s| s.fingerprint == fingerprint);
     let opts = PpmOptions {
-        stop: Stop {
-            iterations: p.iterations,
-            time_limit: None,
-            target_error: None,
-        },
-        reference: None,
         resume,
-        fingerprint,
+        ..PpmOptions::new(Stop::after(p.iterations), fingerprint)
     };
+    let png = result_path(&app.config.data, id, "png");
+    let exr = result_path(&app.config.data, id, "exr");
     let mut on_pass = |state: &PpmState| {
-        let image = state.image();
-        let png = result_path(&app.config.data, id, "png");
-        let exr = result_path(&app.config.data, id, "exr");
-        let wrote = write_atomically(&png, |t| output::write_png(&image, params.exposure, t))
-            .and_then(|_| write_atomically(&exr, |t| output::write_exr(&image, t)))
-            .and_then(|_| {
-                write_atomically(&state_path, |t| {
-                    let mut buf = Vec::new();
-                    state.save(&mut buf)?;
-                    std::fs::write(t, &buf)?;
-                    Ok(())
-                })
-            });
+        if state.passes >= p.iterations {
+            // The last pass's image is the result, which `execute` writes.
+            return ControlFlow::Continue(());
+        }
+        let wrote = output::write_images(&state.image(), params.exposure, &png, Some(&exr))
+            .map_err(|e| e.to_string())
+            .and_then(|_| state.save_file(&state_path).map_err(|e| e.to_string()));
         match wrote {
             // The render goes on: the next pass writes again, and the end is checked.
-            Err(Failure::Error(e)) => {
-                tracing::warn!(job = id, "preview of pass {}: {e}", state.passes)
-            }
-            _ => live.send_modify(|s| s.previews += 1),
+            Err(e) => tracing::warn!(job = id, "preview of pass {}: {e}", state.passes),
+            Ok(()) => live.send_modify(|s| s.previews += 1),
         }
         if app.scheduler.should_yield(id) {
             ControlFlow::Break(())
@@ -334,16 +310,7 @@ fn render_progressive(
         {
             Err(Failure::Yielded)
         }
-        Ok(out) => {
-            // The final image, written here so that a failure fails the job.
-            let image = &out.output.image;
-            let png = result_path(&app.config.data, id, "png");
-            let exr = result_path(&app.config.data, id, "exr");
-            write_atomically(&png, |t| output::write_png(image, params.exposure, t))?;
-            write_atomically(&exr, |t| output::write_exr(image, t))?;
-            let _ = std::fs::remove_file(&state_path);
-            Ok(out.output)
-        }
+        Ok(out) => Ok(out.output),
         Err(PpmError::Cancelled(_)) => Err(Failure::Cancelled),
         Err(PpmError::Input(e)) => Err(Failure::Error(e)),
     }
@@ -357,22 +324,4 @@ fn lower_priority() {
     unsafe {
         libc::setpriority(libc::PRIO_PROCESS, 0, 10);
     }
-}
-
-/// Write a file through a temporary name and a rename, so that a crash never leaves a
-/// half-written image under the final name.
-fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&Path) -> image::ImageResult<()>,
-) -> Result<(), Failure> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("tmp");
-    let tmp = path.with_extension(format!("partial.{ext}"));
-    let fail =
-        |e: &dyn std::fmt::Display| Failure::Error(format!("writing {}: {e}", path.display()));
-    write(&tmp).map_err(|e| fail(&e))?;
-    // On disk before the rename makes it visible under its final name.
-    std::fs::File::open(&tmp)
-        .and_then(|f| f.sync_all())
-        .map_err(|e| fail(&e))?;
-    std::fs::rename(&tmp, path).map_err(|e| fail(&e))
 }

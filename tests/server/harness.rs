@@ -217,3 +217,27 @@ pub fn bytes(s: &Server, token: &str, path: &str) -> (u16, Vec<u8>) {
     let r = client().get(s.url(path)).bearer_auth(token).send().unwrap();
     (r.status().as_u16(), r.bytes().unwrap().to_vec())
 }
+
+/// The server's Prometheus text.
+pub fn metrics(s: &Server) -> String {
+    client()
+        .get(s.url("/metrics"))
+        .send()
+        .unwrap()
+        .text()
+        .unwrap()
+}
+
+/// Follow job `id` to its end and assert that it is done.
+pub fn expect_done(s: &Server, token: &str, id: i64) -> Vec<SseEvent> {
+    let evs = follow_to_end(s, token, id);
+    assert_eq!(evs.last().unwrap().name, "done", "job {id}: {evs:?}");
+    evs
+}
+
+/// Submit a job, follow it to its end and assert that it is done; returns its id.
+pub fn run_to_done(s: &Server, token: &str, body: Value) -> i64 {
+    let id = submit(s, token, body);
+    expect_done(s, token, id);
+    id
+}

@@ -96,12 +96,7 @@ fn submit_follow_events_and_fetch_images() {
     assert_eq!(get(&s, &s.admin, "/api/scenes/nope").0, 404);
     let health = client().get(s.url("/healthz")).send().unwrap();
     assert_eq!(health.status().as_u16(), 200);
-    let metrics = client()
-        .get(s.url("/metrics"))
-        .send()
-        .unwrap()
-        .text()
-        .unwrap();
+    let metrics = metrics(&s);
     assert!(
         metrics.contains("photonbox_jobs{status=\"done\"} 1"),
         "{metrics}"
@@ -120,11 +115,7 @@ fn submit_follow_events_and_fetch_images() {
 fn camera_only_change_reuses_the_photon_maps() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(dir.path(), &[]);
-    let first = submit(&s, &s.admin, small("cornell_mirror_glass"));
-    assert_eq!(
-        follow_to_end(&s, &s.admin, first).last().unwrap().name,
-        "done"
-    );
+    let first = run_to_done(&s, &s.admin, small("cornell_mirror_glass"));
 
     // The same scene uploaded with another camera, resolution, k, spp and exposure.
     let (_, mut scene) = get(&s, &s.admin, "/api/scenes/cornell_mirror_glass");
@@ -135,19 +126,11 @@ fn camera_only_change_reuses_the_photon_maps() {
         "params": {"width": 40, "height": 40, "photons": 20000, "caustic_photons": 20000,
                    "spp": 2, "gather_rays": 0, "k": 10, "exposure": 1.0}
     });
-    let second = submit(&s, &s.admin, body);
-    assert_eq!(
-        follow_to_end(&s, &s.admin, second).last().unwrap().name,
-        "done"
-    );
+    let second = run_to_done(&s, &s.admin, body);
     // Different photon counts: new maps.
     let mut third_body = small("cornell_mirror_glass");
     third_body["params"]["photons"] = json!(30000);
-    let third = submit(&s, &s.admin, third_body);
-    assert_eq!(
-        follow_to_end(&s, &s.admin, third).last().unwrap().name,
-        "done"
-    );
+    let third = run_to_done(&s, &s.admin, third_body);
 
     let stats = |id: i64| get(&s, &s.admin, &format!("/api/jobs/{id}")).1["stats"].clone();
     let (a, b, c) = (stats(first), stats(second), stats(third));
@@ -163,12 +146,7 @@ fn camera_only_change_reuses_the_photon_maps() {
     assert_eq!(b["photons"]["global_stored"], a["photons"]["global_stored"]);
     assert_eq!(b["params"]["width"], 40);
     assert_eq!(c["cache"]["photon_maps"], "miss");
-    let metrics = client()
-        .get(s.url("/metrics"))
-        .send()
-        .unwrap()
-        .text()
-        .unwrap();
+    let metrics = metrics(&s);
     assert!(
         metrics.contains("photonbox_photon_map_cache_hits_total 1"),
         "{metrics}"
@@ -210,10 +188,7 @@ fn cancel_stops_a_running_render_and_a_queued_one() {
     );
 
     // The queued job then runs; cancelling a finished job deletes it and its files.
-    assert_eq!(
-        follow_to_end(&s, &s.admin, queued).last().unwrap().name,
-        "done"
-    );
+    expect_done(&s, &s.admin, queued);
     assert!(dir.path().join(format!("results/{queued}.png")).exists());
     assert_eq!(delete(&s, &s.admin, queued).0, 204);
     assert_eq!(get(&s, &s.admin, &format!("/api/jobs/{queued}")).0, 404);
@@ -420,8 +395,7 @@ fn nothing_is_lost_when_the_server_is_killed() {
     );
     // The interrupted job runs again, and the queued one runs.
     for id in [running, queued] {
-        let evs = follow_to_end(&s, &t, id);
-        assert_eq!(evs.last().unwrap().name, "done", "job {id}: {evs:?}");
+        expect_done(&s, &t, id);
         assert_eq!(bytes(&s, &t, &format!("/api/jobs/{id}/image.exr")).0, 200);
     }
     let (_, list) = get(&s, &t, "/api/jobs");
@@ -440,9 +414,8 @@ fn a_small_job_is_not_stuck_behind_another_users_long_one() {
     let mut quick = small("cornell");
     quick["params"]["integrator"] = json!("raytrace");
     let small_id = submit(&s, &bob, quick);
-    let evs = follow_to_end(&s, &bob, small_id);
+    expect_done(&s, &bob, small_id);
     let took = t0.elapsed().as_secs_f64();
-    assert_eq!(evs.last().unwrap().name, "done");
     let (_, long_job) = get(&s, &alice, &format!("/api/jobs/{long_id}"));
     assert_eq!(
         long_job["status"], "running",
@@ -520,8 +493,7 @@ fn ppm_jobs_stream_previews_and_resume_after_a_crash() {
     );
 
     let s = Server::start(dir.path(), &["--max-running", "1"]);
-    let evs = follow_to_end(&s, &t, id);
-    assert_eq!(evs.last().unwrap().name, "done", "{evs:?}");
+    expect_done(&s, &t, id);
     let (_, resumed) = get(&s, &t, &format!("/api/jobs/{id}"));
     let history = resumed["stats"]["ppm"]["history"].as_array().unwrap();
     assert_eq!(history.len(), 40, "all 40 passes are in the stats");
@@ -579,15 +551,13 @@ fn a_progressive_job_yields_its_slot_between_passes() {
     let mut quick = small("cornell");
     quick["params"]["integrator"] = json!("raytrace");
     let small_id = submit(&s, &bob, quick);
-    let evs = follow_to_end(&s, &bob, small_id);
-    assert_eq!(evs.last().unwrap().name, "done");
+    expect_done(&s, &bob, small_id);
     let (_, long_job) = get(&s, &alice, &format!("/api/jobs/{long_id}"));
     assert_ne!(
         long_job["status"], "done",
         "bob's job ran while alice's 400 passes were not done"
     );
-    let evs = follow_to_end(&s, &alice, long_id);
-    assert_eq!(evs.last().unwrap().name, "done", "{evs:?}");
+    expect_done(&s, &alice, long_id);
     let (_, long_job) = get(&s, &alice, &format!("/api/jobs/{long_id}"));
     assert_eq!(long_job["stats"]["ppm"]["passes"], 400);
     assert_eq!(long_job["stats"]["ppm"]["stopped_by"], "iterations");

@@ -239,6 +239,17 @@ pub struct PhotonMaps {
 }
 
 impl PhotonMaps {
+    /// No maps (for a render that traced none), for `params`.
+    pub fn none(params: PhotonParams) -> PhotonMaps {
+        PhotonMaps {
+            global: None,
+            caustic: None,
+            params,
+            trace_seconds: 0.0,
+            build_seconds: 0.0,
+        }
+    }
+
     pub fn bytes(&self) -> usize {
         self.global.as_ref().map_or(0, |m| m.bytes())
             + self.caustic.as_ref().map_or(0, |m| m.bytes())

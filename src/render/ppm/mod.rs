@@ -27,7 +27,9 @@ use crate::render::control::{Cancelled, Control, Phase};
 use crate::render::effects::analyse;
 use crate::render::film::{Image, render_film};
 use crate::render::integrator::{RenderParams, Shader};
-use crate::render::photon::{Density, KnnScratch, PhotonMap, RadiusLookup, build_photon_maps};
+use crate::render::photon::{
+    Density, KnnScratch, PhotonMap, PhotonMaps, RadiusLookup, build_photon_maps,
+};
 use crate::render::pipeline::{RenderOutput, StatsInput, collect_stats};
 use crate::render::sampling::splitmix64;
 use crate::render::scene::Scene;
@@ -49,6 +51,17 @@ pub struct Stop {
     pub time_limit: Option<f64>,
     /// Stop once `relmse` against the reference is at most this.
     pub target_error: Option<f64>,
+}
+
+impl Stop {
+    /// Stop after `iterations` passes, and on nothing else.
+    pub fn after(iterations: u32) -> Stop {
+        Stop {
+            iterations,
+            time_limit: None,
+            target_error: None,
+        }
+    }
 }
 
 /// Why a progressive render stopped.
@@ -95,6 +108,18 @@ pub struct PpmOptions<'a> {
     pub resume: Option<PpmState>,
     /// Identifies scene and parameters (see [`fingerprint`]).
     pub fingerprint: String,
+}
+
+impl<'a> PpmOptions<'a> {
+    /// A fresh render (no state to resume, no reference) that stops as `stop` says.
+    pub fn new(stop: Stop, fingerprint: String) -> PpmOptions<'a> {
+        PpmOptions {
+            stop,
+            reference: None,
+            resume: None,
+            fingerprint,
+        }
+    }
 }
 
 pub struct PpmOutput {
@@ -192,7 +217,12 @@ pub fn render_ppm(
     let tracker = control.tracker(Phase::Passes, opts.stop.iterations as u64);
     tracker.advance(state.passes as u64);
     let mut last_maps = None;
-    let mut last_error = state.last.as_ref().and_then(|h| h.error);
+    // The error of the image so far against this render's reference (a resumed state's
+    // recorded error may be against another one).
+    let mut last_error = match opts.reference {
+        Some(r) if state.passes > 0 => compare(&state.image(), r).ok(),
+        _ => None,
+    };
     let stopped_by = loop {
         if let Some(reason) = should_stop(&state, &opts.stop, last_error) {
             break reason;
@@ -276,43 +306,28 @@ pub fn render_ppm(
         }
     };
     let image = state.image();
-    let mut stats = match &last_maps {
-        Some((maps, rg, rc)) => collect_stats(&StatsInput {
-            scene,
-            maps,
-            params,
-            camera: &camera,
-            cache: None,
-            radii: (*rc, *rg),
-            times: (0.0, 0.0),
-            nonfinite_samples: state.nonfinite_samples,
-            effects: analysis.effects.clone(),
-        }),
+    // Stats of the last pass's maps (none if a resumed render had no pass left to run).
+    let no_maps;
+    let (maps, (rg, rc)) = match &last_maps {
+        Some((maps, rg, rc)) => (maps, (*rg, *rc)),
         None => {
-            // Resumed with nothing left to do: stats from the photon parameters alone.
-            let maps = crate::render::photon::PhotonMaps {
-                global: None,
-                caustic: None,
-                params: analysis.photon_params.clone(),
-                trace_seconds: 0.0,
-                build_seconds: 0.0,
-            };
-            collect_stats(&StatsInput {
-                scene,
-                maps: &maps,
-                params,
-                camera: &camera,
-                cache: None,
-                radii: (0.0, 0.0),
-                times: (0.0, 0.0),
-                nonfinite_samples: state.nonfinite_samples,
-                effects: analysis.effects.clone(),
-            })
+            no_maps = PhotonMaps::none(analysis.photon_params.clone());
+            (&no_maps, (0.0, 0.0))
         }
     };
+    let mut stats = collect_stats(&StatsInput {
+        scene,
+        maps,
+        params,
+        camera: &camera,
+        cache: None,
+        radii: (rc, rg),
+        times: (0.0, 0.0),
+        nonfinite_samples: state.nonfinite_samples,
+        effects: analysis.effects,
+    });
     sum_times(&mut stats.times, &state);
-    // Against the final image (a resumed render may have run no pass here).
-    stats.error = opts.reference.and_then(|r| compare(&image, r).ok());
+    stats.error = last_error;
     stats.ppm = Some(PpmReport {
         alpha,
         passes: state.passes,

@@ -192,6 +192,13 @@ impl PpmState {
         w.flush()
     }
 
+    /// Save to `path`, atomically (see [`crate::render::output::write_atomically`]).
+    pub fn save_file(&self, path: &std::path::Path) -> std::io::Result<()> {
+        crate::render::output::write_atomically(path, |tmp| {
+            self.save(std::io::BufWriter::new(std::fs::File::create(tmp)?))
+        })
+    }
+
     pub fn load(mut r: impl Read) -> Result<PpmState, StateError> {
         let mut magic = vec![0u8; MAGIC.len()];
         r.read_exact(&mut magic)

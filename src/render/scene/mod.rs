@@ -97,6 +97,11 @@ impl SceneDesc {
 
     /// Read and parse a scene file; `obj` paths resolve against its folder.
     pub fn load(path: &Path) -> Result<SceneDesc, SceneError> {
+        Ok(SceneDesc::load_with_source(path)?.0)
+    }
+
+    /// [`SceneDesc::load`], also returning the file's text (which identifies the scene).
+    pub fn load_with_source(path: &Path) -> Result<(SceneDesc, String), SceneError> {
         let text = std::fs::read_to_string(path).map_err(|e| SceneError {
             path: "scene".into(),
             message: format!("cannot read {}: {e}", path.display()),
@@ -108,7 +113,7 @@ impl SceneDesc {
                 d
             }
         });
-        load::parse(&text, dir)
+        Ok((load::parse(&text, dir)?, text))
     }
 
     /// Axis-aligned bounds of the objects, and of the lights too if `with_lights` (the
@@ -188,6 +193,12 @@ impl Scene {
 
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         Ok(Scene::build(&SceneDesc::load(path)?))
+    }
+
+    /// [`Scene::load`], also returning the file's text (which identifies the scene).
+    pub fn load_with_source(path: &Path) -> Result<(Scene, String), SceneError> {
+        let (desc, text) = SceneDesc::load_with_source(path)?;
+        Ok((Scene::build(&desc), text))
     }
 
     pub fn build(desc: &SceneDesc) -> Scene {
