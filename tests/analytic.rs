@@ -4,7 +4,7 @@ mod common;
 
 use std::f64::consts::PI;
 
-use common::{rel, render_image, scene};
+use common::{fresnel, rel, render_image, scene};
 use glam::DVec3;
 use photonbox::render::photon::PhotonStore;
 use photonbox::render::{Control, IntegratorKind, RenderParams, Scene, trace_maps};
@@ -207,18 +207,6 @@ fn closed_sphere_final_gather_within_2_percent() {
     );
 }
 
-/// Unpolarized Fresnel reflectance, written out independently of the renderer's.
-fn fresnel(cos_i: f64, n_i: f64, n_t: f64) -> f64 {
-    let sin_t = n_i / n_t * (1.0 - cos_i * cos_i).max(0.0).sqrt();
-    if sin_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin_t * sin_t).sqrt();
-    let rs = (n_i * cos_i - n_t * cos_t) / (n_i * cos_i + n_t * cos_t);
-    let rp = (n_t * cos_i - n_i * cos_t) / (n_t * cos_i + n_i * cos_t);
-    0.5 * (rs * rs + rp * rp)
-}
-
 /// Fraction of a point light's power that a glass sphere sends down to an infinite floor:
 /// a 2-D trace of each ray of the light's cone through the sphere (every internal
 /// reflection followed), integrated over the cone.
@@ -277,7 +265,17 @@ fn glass_sphere_floor_fraction(d: f64, r: f64, ior: f64) -> f64 {
 /// (c) A glass sphere transmits the expected fraction of the light's power to the floor.
 #[test]
 fn glass_sphere_sends_fresnel_fraction_of_power_to_floor() {
-    let (d, r, ior, power) = (2.5, 1.0, 1.5, 100.0);
+    check_glass_sphere(1.5);
+}
+
+/// Issue 5's extreme index: more reflection at each interface, more internal bounces.
+#[test]
+fn glass_sphere_of_ior_4_sends_fresnel_fraction_of_power_to_floor() {
+    check_glass_sphere(4.0);
+}
+
+fn check_glass_sphere(ior: f64) {
+    let (d, r, power) = (2.5, 1.0, 100.0);
     let json = format!(
         r#"{{
         "camera": {{"position": [0, 0, 8], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov": 40,
@@ -306,7 +304,7 @@ fn glass_sphere_sends_fresnel_fraction_of_power_to_floor() {
         .expect("the scene has glass: a caustic map is built");
     let got = caustic.total_power()[0];
     let want = power * glass_sphere_floor_fraction(d, r, ior);
-    eprintln!("glass sphere: caustic power {got:.5} W, expected {want:.5} W");
+    eprintln!("glass sphere, ior {ior}: caustic power {got:.5} W, expected {want:.5} W");
     assert!(
         rel(got, want).abs() < 0.02,
         "caustic power on the floor {got:.4} W, expected {want:.4} W ({:+.4})",

@@ -32,6 +32,7 @@ fn caustic(aim: bool, emitted: u64) -> (u64, f64) {
         max_depth: 32,
         seed: 5,
         aim_caustics: aim,
+        dark_lights: vec![],
     };
     let maps = build_photon_maps(&scene, &params, &Control::none()).unwrap();
     let map = maps.caustic.expect("a caustic map");

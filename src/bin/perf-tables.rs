@@ -12,7 +12,9 @@ use std::time::Instant;
 
 use clap::Parser;
 use photonbox::render::photon::{PhotonParams, PhotonStore, build_photon_maps};
-use photonbox::render::{Control, RenderParams, Scene, ppm, render_with_maps, trace_maps};
+use photonbox::render::{
+    Control, EffectSwitches, RenderParams, Scene, ppm, render_with_maps, trace_maps,
+};
 
 #[derive(Parser)]
 struct Args {
@@ -34,6 +36,9 @@ struct Args {
     /// Skip the progressive (ppm) pass timing.
     #[arg(long)]
     no_ppm: bool,
+    /// Skip the effects timing (a diffuse-only scene with and without `--no-caustics`).
+    #[arg(long)]
+    no_effects: bool,
 }
 
 /// The seed's measurements (seconds): (n, k, tracing, render).
@@ -151,6 +156,9 @@ fn main() {
     if !args.no_ppm {
         ppm_pass(&scene, args.runs);
     }
+    if !args.no_effects {
+        effects_cost(args.runs);
+    }
     // Throughput: emitted photons per second, and a 1M-photon kd-tree build.
     if args.no_throughput {
         return;
@@ -174,6 +182,7 @@ fn main() {
             max_depth: RenderParams::default().max_depth,
             seed: 1,
             aim_caustics: aim,
+            dark_lights: vec![],
         };
         let mut rates = vec![];
         let mut builds = vec![];
@@ -222,5 +231,40 @@ fn ppm_pass(scene: &Scene, runs: usize) {
         pass(|p| p.render) * 1e3,
         h.len(),
         (h[0].photon_trace + h[0].build_maps + h[0].render) * 1e3,
+    );
+}
+
+/// Issue 5: a diffuse-only scene renders as fast with caustics on (the default) as with them
+/// switched off, since the analysis traces no caustic photons for it either way. The two
+/// configurations alternate, `runs` times each, default photon-mode parameters.
+fn effects_cost(runs: usize) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_spheres.json");
+    let scene = Scene::load(&path).expect("scenes/cornell_spheres.json loads");
+    let on = RenderParams::default();
+    let off = RenderParams {
+        effects: EffectSwitches {
+            caustics: false,
+            ..EffectSwitches::ALL_ON
+        },
+        ..RenderParams::default()
+    };
+    let (mut t_on, mut t_off) = (vec![], vec![]);
+    let mut caustic_emitted = 0;
+    for _ in 0..runs {
+        for (params, times) in [(&on, &mut t_on), (&off, &mut t_off)] {
+            let t0 = Instant::now();
+            let out = photonbox::render::render(&scene, params, &Control::none()).unwrap();
+            times.push(t0.elapsed().as_secs_f64());
+            caustic_emitted += out.stats.photons.caustic_emitted;
+        }
+    }
+    let (a, b) = (median(t_on), median(t_off));
+    println!(
+        "\n- effects, cornell_spheres.json (no mirror or glass), default parameters: caustics on \
+         {:.1} ms, --no-caustics {:.1} ms, ratio {:.3}; caustic photons emitted in all runs: \
+         {caustic_emitted}",
+        a * 1e3,
+        b * 1e3,
+        a / b
     );
 }

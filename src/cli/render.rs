@@ -12,7 +12,8 @@ use crate::{bad, progress};
 use photonbox::render::accuracy::{ImageError, compare};
 use photonbox::render::ppm::{self, PpmOptions, PpmState, Stop};
 use photonbox::render::{
-    self, Control, Image, IntegratorKind, PhotonStore, RenderOutput, RenderParams, Scene, output,
+    self, Control, EffectSwitches, Image, IntegratorKind, PhotonStore, RenderOutput, RenderParams,
+    Scene, output,
 };
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -78,6 +79,15 @@ pub struct ParamArgs {
     /// the mirror and glass objects.
     #[arg(long)]
     pub blind_caustics: bool,
+    /// Leave out direct light at what the camera sees (to see the other effects alone).
+    #[arg(long)]
+    pub no_direct_light: bool,
+    /// Leave out caustics: no caustic photons are traced.
+    #[arg(long)]
+    pub no_caustics: bool,
+    /// Leave out light from other diffuse surfaces (no global-map reads, no gathering).
+    #[arg(long, alias = "no-indirect")]
+    pub no_diffuse_interreflection: bool,
 }
 
 #[derive(Args)]
@@ -151,6 +161,11 @@ pub fn params_from_args(a: &ParamArgs) -> anyhow::Result<RenderParams> {
         alpha: a.alpha,
         radius: a.radius,
         aim_caustics: !a.blind_caustics,
+        effects: EffectSwitches {
+            direct_light: !a.no_direct_light,
+            caustics: !a.no_caustics,
+            diffuse_interreflection: !a.no_diffuse_interreflection,
+        },
     };
     params
         .validate()

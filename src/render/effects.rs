@@ -1,10 +1,12 @@
 //! Deciding, before any photon is traced, which light-transport effects a job simulates,
 //! and so which photon maps it needs: no map the integrator does not read, no caustic map
-//! in a scene without specular surfaces, no photons from lights that emit nothing.
+//! in a scene without specular surfaces, no photons from lights that emit nothing or are
+//! shut inside a closed object the camera is outside of, nothing the job switched off.
 
 use std::collections::BTreeMap;
 
 use crate::render::integrator::{IntegratorKind, Plan, RenderParams};
+use crate::render::light::Light;
 use crate::render::material::Material;
 use crate::render::math::max_component;
 use crate::render::photon::{PhotonParams, PhotonStore};
@@ -26,6 +28,41 @@ fn effect(simulated: bool, how: &str, reason: &str) -> Effect {
     }
 }
 
+fn switched_off(name: &str) -> Effect {
+    effect(
+        false,
+        "none",
+        &format!("switched off by the job (effects.{name}: false)"),
+    )
+}
+
+/// Whether a light contributes, and why not when it does not.
+fn light_effect(scene: &Scene, i: usize, light: &Light, photon: bool) -> Effect {
+    if !(max_component(light.power()) > 0.0) {
+        return effect(false, "none", "the light emits no power");
+    }
+    if let Some(o) = scene.shut_in[i] {
+        return effect(
+            false,
+            "none",
+            &format!(
+                "shut inside objects[{o}], a closed opaque object the camera is outside of: \
+                 it emits no photons"
+            ),
+        );
+    }
+    let how = if photon {
+        "photons and shadow rays"
+    } else {
+        "shadow rays"
+    };
+    effect(
+        true,
+        how,
+        "it emits power and its light can reach the camera's view",
+    )
+}
+
 pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
     let plan = Plan::new(params);
     let has = |f: fn(&Material) -> bool| scene.materials.iter().any(f);
@@ -34,7 +71,15 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
     let phong = has(|m| matches!(m, Material::Phong { .. }));
     let diffuse = has(|m| m.diffuse_reflectance() != crate::render::math::Rgb::ZERO);
     let specular = mirror || glass;
-    let lit = scene.lights.iter().any(|l| max_component(l.power()) > 0.0);
+    let dark_lights: Vec<u32> = (0..scene.lights.len() as u32)
+        .filter(|&i| scene.shut_in[i as usize].is_some())
+        .collect();
+    let lit = scene
+        .lights
+        .iter()
+        .enumerate()
+        .any(|(i, l)| max_component(l.power()) > 0.0 && !dark_lights.contains(&(i as u32)));
+    let switches = params.effects;
     let photon = params.integrator != IntegratorKind::Raytrace;
     let direct_only = params.photon_store == PhotonStore::DirectOnly;
 
@@ -45,7 +90,9 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
     let shadow_rays = plan.primary.shadow_rays;
     e.insert(
         "direct_light".into(),
-        if !lit {
+        if !switches.direct_light {
+            switched_off("direct_light")
+        } else if !lit {
             effect(false, "none", "no light emits any power")
         } else if shadow_rays {
             effect(
@@ -99,6 +146,8 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
             )
         } else if !photon {
             effect(false, "none", "the raytrace integrator traces no photons")
+        } else if !switches.caustics {
+            switched_off("caustics")
         } else if direct_only {
             effect(
                 false,
@@ -130,6 +179,8 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
             )
         } else if !photon {
             effect(false, "none", "the raytrace integrator traces no photons")
+        } else if !switches.diffuse_interreflection {
+            switched_off("diffuse_interreflection")
         } else if direct_only {
             effect(
                 false,
@@ -154,6 +205,13 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
         },
     );
 
+    for (i, light) in scene.lights.iter().enumerate() {
+        e.insert(
+            format!("lights[{i}]"),
+            light_effect(scene, i, light, photon),
+        );
+    }
+
     let photon_params = PhotonParams {
         global_photons: if global_map { params.photons } else { 0 },
         caustic_photons: if caustic_map {
@@ -165,6 +223,7 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
         max_depth: params.max_depth,
         seed: params.seed,
         aim_caustics: params.aim_caustics,
+        dark_lights,
     };
     Analysis {
         plan,

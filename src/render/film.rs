@@ -57,6 +57,27 @@ pub struct FilmOutput {
     pub nonfinite_samples: u64,
 }
 
+/// The mean of a pixel's finite samples, and how many were not finite: those are dropped
+/// (and reported as `nonfinite_samples`) rather than poisoning the pixel. No finite sample
+/// leaves the pixel black.
+fn pixel_mean(samples: impl Iterator<Item = Rgb>) -> (Rgb, u32) {
+    let (mut sum, mut good, mut bad) = (Rgb::ZERO, 0u32, 0u32);
+    for l in samples {
+        if l.is_finite() {
+            sum += l;
+            good += 1;
+        } else {
+            bad += 1;
+        }
+    }
+    let mean = if good > 0 {
+        sum / good as f32
+    } else {
+        Rgb::ZERO
+    };
+    (mean, bad)
+}
+
 /// Render every pixel with `spp` jittered samples. Sample j of pixel i draws its random
 /// numbers from stream (seed, camera, i * spp + j) alone, so the image is bit-identical
 /// whatever the number of threads.
@@ -85,26 +106,15 @@ pub fn render_film(
             for y in y0..y1 {
                 for x in x0..x1 {
                     let pixel = (y as u64) * w as u64 + x as u64;
-                    let mut sum = Rgb::ZERO;
-                    let mut good = 0u32;
-                    for j in 0..spp {
+                    let samples = (0..spp).map(|j| {
                         let mut s =
                             Sampler::new(seed, Stream::Camera, pixel * spp as u64 + j as u64);
                         let jitter = s.next_2d();
                         let ray = camera.ray(x as f32 + jitter.x, y as f32 + jitter.y);
-                        let l = shader.camera_ray(&ray, &mut s, scratch);
-                        if l.is_finite() {
-                            sum += l;
-                            good += 1;
-                        } else {
-                            bad += 1;
-                        }
-                    }
-                    let v = if good > 0 {
-                        sum / good as f32
-                    } else {
-                        Rgb::ZERO
-                    };
+                        shader.camera_ray(&ray, &mut s, scratch)
+                    });
+                    let (v, nonfinite) = pixel_mean(samples);
+                    bad += nonfinite as u64;
                     out.push(v.to_array());
                 }
             }
@@ -130,4 +140,19 @@ pub fn render_film(
         image,
         nonfinite_samples: dropped.into_inner(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn non_finite_samples_are_dropped_and_counted() {
+        let nan = Rgb::new(f32::NAN, 0.0, 0.0);
+        let inf = Rgb::new(0.0, f32::INFINITY, 0.0);
+        let (m, bad) = pixel_mean([Rgb::ONE, nan, Rgb::splat(3.0), inf].into_iter());
+        assert_eq!((m, bad), (Rgb::splat(2.0), 2));
+        let (m, bad) = pixel_mean([nan, nan].into_iter());
+        assert_eq!((m, bad), (Rgb::ZERO, 2));
+    }
 }

@@ -23,7 +23,7 @@ pub mod stats;
 
 pub use control::{Cancelled, Control, Phase, Progress};
 pub use film::Image;
-pub use integrator::{IntegratorKind, ParamError, RenderParams};
+pub use integrator::{EffectSwitches, IntegratorKind, ParamError, RenderParams};
 pub use photon::{PhotonMaps, PhotonStore};
 pub use pipeline::{RenderOutput, render, render_with_maps, trace_maps};
 pub use scene::{Scene, SceneDesc, SceneError};

@@ -9,7 +9,7 @@ use serde_json::Value;
 use super::error::ApiError;
 use crate::render::photon::PhotonParams;
 use crate::render::scene::{SceneDesc, ShapeDesc};
-use crate::render::{IntegratorKind, PhotonStore, RenderParams};
+use crate::render::{EffectSwitches, IntegratorKind, PhotonStore, RenderParams};
 
 /// `POST /api/jobs` body.
 #[derive(Deserialize, Debug)]
@@ -58,6 +58,31 @@ pub struct ParamsJson {
     /// PNG exposure in stops.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub exposure: Option<f32>,
+    /// Effects to switch off, e.g. `{"caustics": false}`; unnamed ones stay on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub effects: Option<EffectsJson>,
+}
+
+/// `params.effects`: each effect on (true, the default) or off.
+#[derive(Deserialize, Serialize, Debug, Default, Clone, Copy, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EffectsJson {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub direct_light: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub caustics: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub diffuse_interreflection: Option<bool>,
+}
+
+impl EffectsJson {
+    fn switches(&self) -> EffectSwitches {
+        EffectSwitches {
+            direct_light: self.direct_light.unwrap_or(true),
+            caustics: self.caustics.unwrap_or(true),
+            diffuse_interreflection: self.diffuse_interreflection.unwrap_or(true),
+        }
+    }
 }
 
 /// Validated parameters of a job.
@@ -138,6 +163,7 @@ impl ParamsJson {
             alpha: self.alpha.unwrap_or(d.alpha),
             radius: self.radius,
             aim_caustics: true,
+            effects: self.effects.unwrap_or_default().switches(),
         };
         render
             .validate()

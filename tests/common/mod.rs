@@ -86,3 +86,111 @@ pub fn transform_scene(json: &str, s: f64, t: [f64; 3]) -> String {
     }
     v.to_string()
 }
+
+/// An analytic image: each pixel the mean of `f(origin, direction)` (world coordinates, f64)
+/// over an 8x8 grid of camera rays through it, matching the box filter; None where `f` is
+/// None for any of them (a pixel the analytic answer does not fully cover).
+pub fn analytic_pixels(
+    scene: &Scene,
+    f: impl Fn(glam::DVec3, glam::DVec3) -> Option<f64>,
+) -> Vec<Option<f64>> {
+    let cam = &scene.camera;
+    let mut out = Vec::with_capacity((cam.width * cam.height) as usize);
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            let mut sum = Some(0.0);
+            for j in 0..8 {
+                for i in 0..8 {
+                    let r = cam.ray(
+                        x as f32 + (i as f32 + 0.5) / 8.0,
+                        y as f32 + (j as f32 + 0.5) / 8.0,
+                    );
+                    let o = r.o.as_dvec3() + scene.frame_origin;
+                    let v = f(o, r.d.as_dvec3().normalize());
+                    sum = sum.zip(v).map(|(a, b)| a + b);
+                }
+            }
+            out.push(sum.map(|s| s / 64.0));
+        }
+    }
+    out
+}
+
+/// Nearest hit distance of the ray o + t d (d unit) with a sphere, t > 0.
+pub fn ray_sphere(o: glam::DVec3, d: glam::DVec3, c: glam::DVec3, r: f64) -> Option<f64> {
+    let oc = o - c;
+    let b = oc.dot(d);
+    let disc = b * b - (oc.length_squared() - r * r);
+    if disc < 0.0 {
+        return None;
+    }
+    let s = disc.sqrt();
+    [-b - s, -b + s].into_iter().find(|&t| t > 0.0)
+}
+
+/// Radiance of a Lambertian point x (normal n, facing the viewer) lit by an unoccluded
+/// point light: albedo/pi * P/(4 pi) * max(cos, 0) / d^2.
+pub fn point_lit(
+    x: glam::DVec3,
+    n: glam::DVec3,
+    light: glam::DVec3,
+    power: f64,
+    albedo: f64,
+) -> f64 {
+    let to = light - x;
+    let d2 = to.length_squared();
+    let cos = (n.dot(to) / d2.sqrt()).max(0.0);
+    albedo / std::f64::consts::PI * power / (4.0 * std::f64::consts::PI) * cos / d2
+}
+
+/// Check `got` (channel 0) against the covered analytic pixels: each within `pixel_tol` of
+/// max(want, `floor_frac` * peak) (the floor lets sampling noise at silhouettes and terminators
+/// pass, not a speckle of acne), and their mean within `mean_tol` (where acne that darkens a
+/// small fraction of samples shows). Returns (worst pixel error, mean error, pixels compared).
+pub fn check_against(
+    label: &str,
+    got: &Image,
+    want: &[Option<f64>],
+    pixel_tol: f64,
+    floor_frac: f64,
+    mean_tol: f64,
+) -> (f64, f64, usize) {
+    let peak = want.iter().flatten().fold(0.0f64, |a, &b| a.max(b));
+    let floor = floor_frac * peak;
+    let (mut worst, mut at, mut n) = (0.0f64, 0, 0);
+    let (mut sum_got, mut sum_want) = (0.0, 0.0);
+    for (i, (g, w)) in got.pixels.iter().zip(want).enumerate() {
+        if let Some(w) = w {
+            let g = g[0] as f64;
+            let e = (g - w).abs() / w.max(floor);
+            if e > worst {
+                (worst, at) = (e, i);
+            }
+            sum_got += g;
+            sum_want += w;
+            n += 1;
+        }
+    }
+    let mean_err = sum_got / sum_want - 1.0;
+    let (x, y) = (at as u32 % got.width, at as u32 / got.width);
+    eprintln!(
+        "{label}: {n} pixels, mean {mean_err:+.5}, worst {worst:.5} at ({x}, {y}): {} against {:?}",
+        got.pixels[at][0], want[at]
+    );
+    assert!(n > 0, "{label}: no pixel compared");
+    assert!(worst < pixel_tol, "{label}: worst pixel error {worst}");
+    assert!(mean_err.abs() < mean_tol, "{label}: mean error {mean_err}");
+    (worst, mean_err, n)
+}
+
+/// Unpolarized Fresnel reflectance, written out independently of the renderer's.
+pub fn fresnel(cos_i: f64, n_i: f64, n_t: f64) -> f64 {
+    let sin_t = n_i / n_t * (1.0 - cos_i * cos_i).max(0.0).sqrt();
+    if sin_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin_t * sin_t).sqrt();
+    let rs = (n_i * cos_i - n_t * cos_t) / (n_i * cos_i + n_t * cos_t);
+    let rp = (n_t * cos_i - n_i * cos_t) / (n_t * cos_i + n_i * cos_t);
+    0.5 * (rs * rs + rp * rp)
+}

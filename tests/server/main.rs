@@ -111,6 +111,27 @@ fn submit_follow_events_and_fetch_images() {
     );
 }
 
+/// The effects a job simulates, and why, are in its stats; a job may switch effects off.
+#[test]
+fn jobs_report_their_effects_and_may_switch_them_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let mut body = small("cornell_mirror_glass");
+    let on = run_to_done(&s, &s.admin, body.clone());
+    body["params"]["effects"] = json!({"caustics": false});
+    let off = run_to_done(&s, &s.admin, body);
+    let stats = |id: i64| get(&s, &s.admin, &format!("/api/jobs/{id}")).1["stats"].clone();
+    let (on, off) = (stats(on), stats(off));
+    assert_eq!(on["effects"]["caustics"]["simulated"], true, "{on}");
+    assert!(on["photons"]["caustic_emitted"].as_u64().unwrap() > 0);
+    assert_eq!(off["effects"]["caustics"]["simulated"], false, "{off}");
+    let reason = off["effects"]["caustics"]["reason"].as_str().unwrap();
+    assert!(reason.contains("effects.caustics: false"), "{reason}");
+    assert_eq!(off["photons"]["caustic_emitted"], 0);
+    assert_eq!(off["effects"]["lights[0]"]["simulated"], true, "{off}");
+    assert_eq!(off["effects"]["refraction"]["simulated"], true, "{off}");
+}
+
 #[test]
 fn camera_only_change_reuses_the_photon_maps() {
     let dir = tempfile::tempdir().unwrap();
@@ -317,6 +338,14 @@ fn limits_and_bad_input_get_clear_errors() {
         (with_params(json!({"k": "many"})), "params.k"),
         (with_params(json!({"k": 0})), "params.k"),
         (with_params(json!({"photns": 5})), "params.photns"),
+        (
+            with_params(json!({"effects": {"shadows": false}})),
+            "params.effects.shadows",
+        ),
+        (
+            with_params(json!({"effects": {"caustics": "no"}})),
+            "params.effects.caustics",
+        ),
         (
             with_params(json!({"integrator": "magic"})),
             "params.integrator",

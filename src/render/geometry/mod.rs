@@ -11,6 +11,7 @@
 mod accel;
 mod flat;
 mod shapes;
+mod triangle_f64;
 
 pub use accel::Accel;
 pub use shapes::{Primitive, Shape, Surface};

@@ -330,7 +330,9 @@ fn intersect_triangle(p0: Vec3A, p1: Vec3A, p2: Vec3A, ray: &Ray) -> Option<Shap
     let delta_t =
         3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
     if t <= delta_t {
-        return None;
+        // Not provably in front in f32; f64 can tell (see triangle_f64.rs). Rare: only
+        // hits very near the origin relative to the triangle's size get here.
+        return super::triangle_f64::intersect_triangle_f64(p0, p1, p2, ray);
     }
     Some(ShapeHit {
         t,

@@ -81,6 +81,48 @@ pub struct RenderParams {
     /// Aim caustic photons at the specular objects (`photon/targets.rs`); false emits them
     /// in every direction, as the seed did (its timing tables are measured that way).
     pub aim_caustics: bool,
+    /// Effects the job switched off (to see their contribution, or to save time).
+    pub effects: EffectSwitches,
+}
+
+/// Effects a job may switch off, each for what the camera sees: at the first non-specular
+/// point of a camera path and at points seen through a glossy reflection. Light that
+/// reaches those points by other paths (direct light at a final-gather hit is indirect
+/// light at the point gathering) stays with the effect it belongs to there.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct EffectSwitches {
+    pub direct_light: bool,
+    /// Caustics from the caustic map; off, no caustic photon is traced.
+    pub caustics: bool,
+    /// Light from other diffuse surfaces (global map, final gathering).
+    pub diffuse_interreflection: bool,
+}
+
+impl EffectSwitches {
+    pub const ALL_ON: EffectSwitches = EffectSwitches {
+        direct_light: true,
+        caustics: true,
+        diffuse_interreflection: true,
+    };
+
+    /// The switches that are off, by name (as in STATS.json's `effects`).
+    pub fn off(&self) -> Vec<&'static str> {
+        [
+            ("direct_light", self.direct_light),
+            ("caustics", self.caustics),
+            ("diffuse_interreflection", self.diffuse_interreflection),
+        ]
+        .into_iter()
+        .filter(|(_, on)| !on)
+        .map(|(name, _)| name)
+        .collect()
+    }
+}
+
+impl Default for EffectSwitches {
+    fn default() -> Self {
+        EffectSwitches::ALL_ON
+    }
 }
 
 /// Default passes of `ppm`.
@@ -208,6 +250,7 @@ impl Default for RenderParams {
             alpha: 0.7,
             radius: None,
             aim_caustics: true,
+            effects: EffectSwitches::ALL_ON,
         }
     }
 }
@@ -227,6 +270,16 @@ pub struct VertexPlan {
     pub glossy_rays: bool,
 }
 
+impl VertexPlan {
+    const NOTHING: VertexPlan = VertexPlan {
+        shadow_rays: false,
+        caustic_map: false,
+        global: ClassMask::NONE,
+        gather: false,
+        glossy_rays: false,
+    };
+}
+
 /// What one render reads at the first non-specular vertex of a camera path (`primary`), at a
 /// vertex reached by a glossy ray from another (`secondary`), and at final-gather hits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -238,14 +291,44 @@ pub struct Plan {
 
 impl Plan {
     pub fn new(p: &RenderParams) -> Plan {
-        use PathClass::*;
-        let nothing = VertexPlan {
-            shadow_rays: false,
-            caustic_map: false,
-            global: ClassMask::NONE,
-            gather: false,
-            glossy_rays: false,
+        Plan::for_transport(p).switched(p.effects)
+    }
+
+    /// Drop what the job switched off from the vertices the camera sees (primary and
+    /// secondary); final-gather hits are left whole, as they make up indirect light.
+    fn switched(self, e: EffectSwitches) -> Plan {
+        let apply = |v: VertexPlan| {
+            let mut global = v.global.0;
+            if !e.direct_light {
+                global &= !ClassMask::of(&[PathClass::Direct]).0;
+            }
+            if !e.diffuse_interreflection {
+                global &= !ClassMask::of(&[PathClass::Indirect]).0;
+            }
+            VertexPlan {
+                shadow_rays: v.shadow_rays && e.direct_light,
+                caustic_map: v.caustic_map && e.caustics,
+                global: ClassMask(global),
+                gather: v.gather && e.diffuse_interreflection,
+                glossy_rays: v.glossy_rays,
+            }
         };
+        let (primary, secondary) = (apply(self.primary), apply(self.secondary));
+        Plan {
+            primary,
+            secondary,
+            gather_hit: if primary.gather {
+                self.gather_hit
+            } else {
+                VertexPlan::NOTHING
+            },
+        }
+    }
+
+    /// The plan of the integrator and photon store, with every effect on.
+    fn for_transport(p: &RenderParams) -> Plan {
+        use PathClass::*;
+        let nothing = VertexPlan::NOTHING;
         match (p.integrator, p.photon_store) {
             (IntegratorKind::Raytrace, _) => {
                 let v = VertexPlan {

@@ -216,16 +216,19 @@ impl PhotonMap {
         self.tree.len() * std::mem::size_of::<Photon>() + self.tree.overhead_bytes()
     }
 
-    /// Total stored flux, summed in f64 so that millions of photons lose no precision.
+    /// Total stored flux, by compensated f64 summation: no precision lost whatever the
+    /// number of photons ([`sum_power`]).
     pub fn total_power(&self) -> [f64; 3] {
-        let mut sum = [0.0f64; 3];
-        for p in self.tree.items() {
-            for (s, c) in sum.iter_mut().zip(p.relative_power().to_array()) {
-                *s += c as f64;
-            }
-        }
-        sum.map(|s| s * self.unit as f64)
+        sum_power(self.tree.items().iter().map(Photon::relative_power))
+            .map(|s| s * self.unit as f64)
     }
+}
+
+/// The sum of many photons' powers, exact to f64's last bits (Neumaier summation).
+pub fn sum_power(powers: impl Iterator<Item = Rgb>) -> [f64; 3] {
+    let mut sum = crate::render::math::CompensatedSum::default();
+    powers.for_each(|p| sum.add(p));
+    sum.total()
 }
 
 /// The photon maps of one (scene, photon parameters) pair, and how they were made.

@@ -10,7 +10,7 @@ use crate::render::control::{Cancelled, Control, Phase};
 use crate::render::geometry::{Surface, spawn_ray};
 use crate::render::light::Light;
 use crate::render::material::Transport;
-use crate::render::math::{luminance, max_component};
+use crate::render::math::{luminance, luminance_f64, max_component};
 use crate::render::sampling::{Sampler, Stream, splitmix64};
 use crate::render::scene::Scene;
 
@@ -57,6 +57,9 @@ pub struct PhotonParams {
     /// Emit caustic photons only toward the specular objects' bounds (photon/targets.rs);
     /// false: in every direction, as blindly as global photons.
     pub aim_caustics: bool,
+    /// Lights that emit no photons (indices, ascending): shut inside a closed object the
+    /// camera is outside of (see `render::effects`).
+    pub dark_lights: Vec<u32>,
 }
 
 /// Which map a tracing run fills.
@@ -79,18 +82,20 @@ pub struct TraceOutput {
 /// prompt cancellation and smooth progress.
 const CHUNK: u64 = 4096;
 
-/// Light-selection table: cumulative luminance of the lights' power.
+/// Light-selection table: cumulative luminance of the lights' power, dark lights left out.
 struct LightPicker {
     cdf: Vec<f32>,
     total: f32,
 }
 
 impl LightPicker {
-    fn new(lights: &[Light]) -> LightPicker {
+    fn new(lights: &[Light], dark: &[u32]) -> LightPicker {
         let mut cdf = Vec::with_capacity(lights.len());
         let mut acc = 0.0;
-        for l in lights {
-            acc += luminance(l.power()).max(0.0);
+        for (i, l) in lights.iter().enumerate() {
+            if !dark.contains(&(i as u32)) {
+                acc += luminance(l.power()).max(0.0);
+            }
             cdf.push(acc);
         }
         LightPicker { cdf, total: acc }
@@ -99,10 +104,14 @@ impl LightPicker {
     /// The light for `u` in [0, 1) and its selection probability.
     fn pick(&self, u: f32) -> (usize, f32) {
         let x = u * self.total;
-        let i = self
-            .cdf
-            .partition_point(|&c| c <= x)
-            .min(self.cdf.len() - 1);
+        // x can round up to the total: then the last light with any power (never one with
+        // none, whose probability 0 would divide a photon's flux).
+        let i = self.cdf.partition_point(|&c| c <= x);
+        let i = if i < self.cdf.len() {
+            i
+        } else {
+            self.cdf.partition_point(|&c| c < self.total)
+        };
         let prev = if i == 0 { 0.0 } else { self.cdf[i - 1] };
         (i, (self.cdf[i] - prev) / self.total)
     }
@@ -120,7 +129,7 @@ fn trace(
 ) -> Result<TraceOutput, Cancelled> {
     let (max_depth, seed) = (params.max_depth, params.seed);
     let aim = params.aim_caustics && target == Target::Caustic;
-    let picker = LightPicker::new(&scene.lights);
+    let picker = LightPicker::new(&scene.lights, &params.dark_lights);
     let nothing_to_aim_at = aim && scene.caustic_targets.is_empty();
     if emitted == 0 || !(picker.total > 0.0) || nothing_to_aim_at {
         tracker.advance(emitted);
@@ -185,10 +194,7 @@ fn renormalise(photons: &mut [Photon], unit: f32) -> f32 {
     if photons.is_empty() {
         return unit;
     }
-    let mean = photons
-        .iter()
-        .map(|p| luminance(p.relative_power()) as f64)
-        .sum::<f64>()
+    let mean = luminance_f64(super::sum_power(photons.iter().map(Photon::relative_power)))
         / photons.len() as f64;
     if !(mean > 0.0 && mean.is_finite()) {
         return unit;

@@ -167,8 +167,8 @@ fn check_camera(c: CameraDef) -> Result<CameraDef, SceneError> {
     }
     let (position, look_at) = (dvec(c.position), dvec(c.look_at));
     let forward = look_at - position;
-    // Relative to the coordinates: the engine works in f32.
-    if !(forward.length() > 1e-6 * position.length().max(look_at.length())) {
+    // The direction is taken in f64 (Scene::build), so only f64's own precision limits it.
+    if !(forward.length() > 1e-12 * position.length().max(look_at.length())) {
         return Err(err("camera.look_at", "must differ from camera.position"));
     }
     let up = dvec(c.up);

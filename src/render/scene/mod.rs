@@ -5,6 +5,7 @@
 //! scene's bounds. With no absolute epsilon anywhere (see `geometry`), this makes an image
 //! independent of where the scene sits in space and of its scale.
 
+mod enclosure;
 mod format;
 mod load;
 
@@ -184,6 +185,9 @@ pub struct Scene {
     pub triangle_count: usize,
     /// Bounds of the specular objects, which caustic photons are aimed at.
     pub caustic_targets: crate::render::photon::CausticTargets,
+    /// For each light, the closed opaque object (index into the scene's `objects`) that
+    /// shuts it in while the camera is outside, if any: such a light emits no photons.
+    pub shut_in: Vec<Option<usize>>,
 }
 
 impl Scene {
@@ -313,9 +317,14 @@ impl Scene {
             })
             .collect();
         let c = &desc.camera;
+        // The view direction in f64: a camera 1e-3 from what it looks at, 1e5 from the
+        // origin, still has one. The point looked at is placed at the position's own scale.
+        let position = DVec3::from_array(c.position.0);
+        let forward = (DVec3::from_array(c.look_at.0) - position).normalize();
+        let reach = (position - origin).length() + geometry_extent as f64 + 1.0;
         let camera = Camera::new(
-            local(DVec3::from_array(c.position.0)),
-            local(DVec3::from_array(c.look_at.0)),
+            local(position),
+            local(position + forward * reach),
             DVec3::from_array(c.up.0).as_vec3a(),
             c.fov.0 as f32,
             c.width,
@@ -334,6 +343,7 @@ impl Scene {
             geometry_extent,
             triangle_count,
             caustic_targets: crate::render::photon::CausticTargets::from_desc(desc, origin),
+            shut_in: enclosure::shut_lights(desc),
         }
     }
 

@@ -1,0 +1,158 @@
+//! Lights shut inside a closed opaque object that the camera is outside of. Nothing such a
+//! light emits can reach what the camera sees, so it emits no photons (issue 5: "no photons
+//! from a light that cannot reach anything the camera can see").
+//!
+//! Closed objects are spheres and watertight meshes (every edge shared by exactly two
+//! triangles, in opposite directions), of any material but glass, which lets light out. A
+//! box of six quads is not recognised (quads are open surfaces), nor are meshes whose
+//! vertices are not shared between faces: the test errs on the side of emitting photons.
+//! Answers are exact in f64 with margins, and a point whose parity rays disagree counts as
+//! neither inside nor outside, so a doubtful case never switches a light off.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::{LightDesc, MeshData, SceneDesc, ShapeDesc};
+use crate::render::material::Material;
+
+/// Relative margin within which a point counts as on a sphere (neither inside nor out).
+const SPHERE_MARGIN: f64 = 1e-9;
+
+/// For each light, the index of a closed opaque object that holds it while the camera is
+/// outside, if any.
+pub fn shut_lights(desc: &SceneDesc) -> Vec<Option<usize>> {
+    let camera = DVec3::from_array(desc.camera.position.0);
+    let mut watertight: HashMap<usize, bool> = HashMap::new();
+    desc.lights
+        .iter()
+        .map(|light| {
+            desc.objects.iter().enumerate().position(|(i, o)| {
+                if matches!(
+                    desc.materials[o.material as usize],
+                    Material::Dielectric { .. }
+                ) {
+                    return false;
+                }
+                match &o.shape {
+                    ShapeDesc::Sphere { center, radius } => {
+                        sphere_holds(*center, *radius, light)
+                            && sphere_side(*center, *radius, camera) == Some(false)
+                    }
+                    ShapeDesc::Quad { .. } => false,
+                    ShapeDesc::Mesh(m) => {
+                        let LightDesc::Point { position, .. } = light else {
+                            return false;
+                        };
+                        // Cheap tests first: the watertightness check reads every edge.
+                        mesh_side(m, *position) == Some(true)
+                            && mesh_side(m, camera) == Some(false)
+                            && *watertight.entry(i).or_insert_with(|| is_watertight(m))
+                    }
+                }
+            })
+        })
+        .collect()
+}
+
+/// Some(true) strictly inside the sphere, Some(false) strictly outside, None on it.
+fn sphere_side(center: DVec3, radius: f64, p: DVec3) -> Option<bool> {
+    let d = (p - center).length();
+    if d < radius * (1.0 - SPHERE_MARGIN) {
+        Some(true)
+    } else if d > radius * (1.0 + SPHERE_MARGIN) {
+        Some(false)
+    } else {
+        None
+    }
+}
+
+/// The whole light strictly inside the sphere (spheres are convex: for a quad light, its
+/// corners suffice).
+fn sphere_holds(center: DVec3, radius: f64, light: &LightDesc) -> bool {
+    let inside = |p: DVec3, r: f64| sphere_side(center, radius - r, p) == Some(true);
+    match light {
+        LightDesc::Point { position, .. } => inside(*position, 0.0),
+        LightDesc::Sphere {
+            center: c,
+            radius: r,
+            ..
+        } => inside(*c, *r),
+        LightDesc::Quad {
+            corner,
+            edge_u,
+            edge_v,
+            ..
+        } => [
+            *corner,
+            *corner + *edge_u,
+            *corner + *edge_v,
+            *corner + *edge_u + *edge_v,
+        ]
+        .into_iter()
+        .all(|p| inside(p, 0.0)),
+    }
+}
+
+/// Every directed edge (a, b) has exactly one twin (b, a): a closed, consistently oriented
+/// surface.
+fn is_watertight(m: &MeshData) -> bool {
+    let mut edges: HashMap<(u32, u32), u32> = HashMap::with_capacity(m.triangles.len() * 3);
+    for t in &m.triangles {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *edges.entry((a, b)).or_default() += 1;
+        }
+    }
+    edges
+        .iter()
+        .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1))
+}
+
+/// Inside by the parity of crossings along three unrelated directions: Some(true) or
+/// Some(false) when all three agree, None when they do not (a ray through an edge, a
+/// point on the surface, an open mesh).
+fn mesh_side(m: &MeshData, p: DVec3) -> Option<bool> {
+    const DIRS: [DVec3; 3] = [
+        DVec3::new(0.5773, 0.6143, 0.5381),
+        DVec3::new(-0.7072, 0.1211, 0.6966),
+        DVec3::new(0.1830, -0.9511, 0.2487),
+    ];
+    let (lo, hi) = m
+        .positions
+        .iter()
+        .fold((DVec3::MAX, DVec3::MIN), |(lo, hi), q| {
+            (lo.min(*q), hi.max(*q))
+        });
+    if p.cmplt(lo).any() || p.cmpgt(hi).any() {
+        return Some(false);
+    }
+    let odd = |d: DVec3| {
+        m.triangles
+            .iter()
+            .filter(|t| {
+                let v = |i: usize| m.positions[t[i] as usize];
+                crosses(p, d, v(0), v(1), v(2))
+            })
+            .count()
+            % 2
+            == 1
+    };
+    let first = odd(DIRS[0]);
+    DIRS[1..].iter().all(|&d| odd(d) == first).then_some(first)
+}
+
+/// The ray p + t d, t > 0, crosses triangle (a, b, c) (Moller and Trumbore 1997).
+fn crosses(p: DVec3, d: DVec3, a: DVec3, b: DVec3, c: DVec3) -> bool {
+    let (e1, e2) = (b - a, c - a);
+    let q = d.cross(e2);
+    let det = e1.dot(q);
+    if det.abs() < 1e-300 {
+        return false;
+    }
+    let s = p - a;
+    let u = s.dot(q) / det;
+    let r = s.cross(e1);
+    let v = d.dot(r) / det;
+    let t = e2.dot(r) / det;
+    u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0
+}

@@ -1,0 +1,215 @@
+//! Effects analysis and switches (issue 5): a job simulates only what its scene calls for
+//! and what it asks for, and says why in its stats.
+
+mod common;
+
+use common::{render_image, scene};
+use photonbox::render::{Control, EffectSwitches, RenderParams, Scene, render};
+
+fn scene_file(name: &str) -> Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name);
+    Scene::load(&path).unwrap()
+}
+
+fn small(effects: EffectSwitches) -> RenderParams {
+    RenderParams {
+        photons: 100_000,
+        caustic_photons: 100_000,
+        k: 30,
+        gather_rays: 0,
+        spp: 2,
+        width: Some(48),
+        height: Some(48),
+        effects,
+        ..RenderParams::default()
+    }
+}
+
+fn only(name: &str) -> EffectSwitches {
+    EffectSwitches {
+        direct_light: name == "direct_light",
+        caustics: name == "caustics",
+        diffuse_interreflection: name == "diffuse_interreflection",
+    }
+}
+
+fn mean(img: &photonbox::render::Image) -> [f64; 3] {
+    let mut m = [0.0; 3];
+    for p in &img.pixels {
+        for c in 0..3 {
+            m[c] += p[c] as f64 / img.pixels.len() as f64;
+        }
+    }
+    m
+}
+
+/// Each effect alone, summed, is the whole image: the switches split the light between
+/// them without loss or double counting. Off, caustics trace no photons.
+#[test]
+fn the_effects_switched_on_one_at_a_time_add_up_to_the_full_image() {
+    let s = scene_file("cornell_mirror_glass.json");
+    let full = render(&s, &small(EffectSwitches::ALL_ON), &Control::none()).unwrap();
+    let mut sum = [0.0; 3];
+    for name in ["direct_light", "caustics", "diffuse_interreflection"] {
+        let out = render(&s, &small(only(name)), &Control::none()).unwrap();
+        common::assert_all_finite(&out.image);
+        let m = mean(&out.image);
+        eprintln!("{name}: mean {m:?}");
+        assert!(m[0] > 1e-3, "{name} alone lights the box: {m:?}");
+        for c in 0..3 {
+            sum[c] += m[c];
+        }
+        for other in ["direct_light", "caustics", "diffuse_interreflection"] {
+            let e = &out.stats.effects[other];
+            assert_eq!(
+                e.simulated,
+                other == name,
+                "{other} with only {name}: {e:?}"
+            );
+            if other != name {
+                assert!(e.reason.contains("switched off"), "{e:?}");
+            }
+        }
+        let caustic_emitted = out.stats.photons.caustic_emitted;
+        assert_eq!(caustic_emitted > 0, name == "caustics", "{name}");
+        let global_emitted = out.stats.photons.global_emitted;
+        assert_eq!(
+            global_emitted > 0,
+            name == "diffuse_interreflection",
+            "{name}"
+        );
+    }
+    let m = mean(&full.image);
+    eprintln!("full {m:?}, sum of the parts {sum:?}");
+    for c in 0..3 {
+        assert!((sum[c] / m[c] - 1.0).abs() < 0.003, "{sum:?} vs {m:?}");
+    }
+}
+
+/// The same switches through the CLI's flags reach STATS.json.
+#[test]
+fn cli_no_caustics_traces_no_caustic_photons() {
+    let dir = tempfile::tempdir().unwrap();
+    let stats = dir.path().join("s.json");
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/glass_orange.json");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_photonbox"))
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("a.png"))
+        .arg("--stats")
+        .arg(&stats)
+        .args(["--width", "16", "--height", "16", "--photons", "5000"])
+        .args(["--no-caustics", "--no-indirect"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+    assert_eq!(s["photons"]["caustic_emitted"], 0);
+    assert_eq!(s["photons"]["global_emitted"], 0);
+    assert_eq!(s["effects"]["caustics"]["simulated"], false);
+    assert_eq!(s["effects"]["diffuse_interreflection"]["simulated"], false);
+    assert_eq!(s["effects"]["direct_light"]["simulated"], true);
+}
+
+/// A floor under a point light, and a second light inside a closed object.
+fn shut_scene(shell: &str, camera: [f64; 3]) -> String {
+    let [cx, cy, cz] = camera;
+    format!(
+        r#"{{
+        "camera": {{"position": [{cx}, {cy}, {cz}], "look_at": [0, 0.5, 0], "up": [0, 1, 0],
+                    "fov": 50, "width": 32, "height": 32}},
+        "materials": {{"white": {{"type": "diffuse", "albedo": [0.7, 0.7, 0.7]}},
+                      "glass": {{"type": "dielectric", "ior": 1.5}}}},
+        "objects": [
+            {{"type": "quad", "material": "white", "corner": [-5, 0, -5],
+              "edge_u": [0, 0, 10], "edge_v": [10, 0, 0]}},
+            {shell}
+        ],
+        "lights": [
+            {{"type": "point", "position": [1, 2, 1], "power": [40, 40, 40]}},
+            {{"type": "point", "position": [0, 0.5, 0], "power": [900, 900, 900]}}
+        ]
+    }}"#
+    )
+}
+
+const OUTSIDE: [f64; 3] = [0.0, 1.0, 3.0];
+
+const SPHERE: &str =
+    r#"{"type": "sphere", "material": "white", "center": [0, 0.5, 0], "radius": 0.3}"#;
+
+/// A closed cube around (0, 0.5, 0), side 0.6, outward faces, shared vertices.
+fn cube(material: &str) -> String {
+    let mut p = vec![];
+    for i in 0..8 {
+        let c = |bit: i32| if i & bit != 0 { 0.3 } else { -0.3 };
+        p.push(format!("[{}, {}, {}]", c(1), 0.5 + c(2), c(4)));
+    }
+    let t = "[0,2,3],[0,3,1],[4,5,7],[4,7,6],[0,1,5],[0,5,4],[2,6,7],[2,7,3],[0,4,6],[0,6,2],[1,3,7],[1,7,5]";
+    format!(
+        r#"{{"type": "mesh", "material": "{material}", "positions": [{}], "triangles": [{t}]}}"#,
+        p.join(",")
+    )
+}
+
+#[test]
+fn a_light_shut_in_a_closed_object_emits_no_photons() {
+    let params = RenderParams {
+        photons: 50_000,
+        caustic_photons: 0,
+        k: 20,
+        gather_rays: 0,
+        spp: 1,
+        ..RenderParams::default()
+    };
+    for shell in [SPHERE.to_string(), cube("white")] {
+        let s = scene(&shut_scene(&shell, OUTSIDE));
+        assert_eq!(s.shut_in, vec![None, Some(1)], "{shell}");
+        let out = render(&s, &params, &Control::none()).unwrap();
+        let e = &out.stats.effects["lights[1]"];
+        assert!(!e.simulated && e.reason.contains("objects[1]"), "{e:?}");
+        assert!(out.stats.effects["lights[0]"].simulated);
+        // Every stored photon came from light 0: the same as without the shut light.
+        let without = shut_scene(&shell, OUTSIDE).replace("900, 900, 900", "0, 0, 0");
+        let reference = render(&scene(&without), &params, &Control::none()).unwrap();
+        assert_eq!(
+            out.stats.photons.global_stored,
+            reference.stats.photons.global_stored
+        );
+        let (a, b) = (mean(&out.image), mean(&reference.image));
+        assert!((a[0] / b[0] - 1.0).abs() < 1e-3, "{a:?} vs {b:?}");
+    }
+    // Not shut: the camera inside the shell, or a glass shell, or a cube with a face missing.
+    let inside = scene(&shut_scene(SPHERE, [0.0, 0.6, 0.1]));
+    assert_eq!(inside.shut_in, vec![None, None]);
+    let glass = scene(&shut_scene(&SPHERE.replace("white", "glass"), OUTSIDE));
+    assert_eq!(glass.shut_in, vec![None, None]);
+    let open = cube("white").replace(",[1,3,7],[1,7,5]", "");
+    assert_eq!(scene(&shut_scene(&open, OUTSIDE)).shut_in, vec![None, None]);
+}
+
+/// The only light shut in: no photons at all, and a black, finite image.
+#[test]
+fn with_every_light_shut_in_nothing_is_traced_and_the_image_is_black() {
+    let json = shut_scene(SPHERE, OUTSIDE).replace("40, 40, 40", "0, 0, 0");
+    let s = scene(&json);
+    let params = RenderParams {
+        photons: 10_000,
+        caustic_photons: 10_000,
+        k: 500,
+        spp: 1,
+        ..RenderParams::default()
+    };
+    let out = render(&s, &params, &Control::none()).unwrap();
+    assert_eq!(out.stats.photons.global_emitted, 0);
+    assert_eq!(out.stats.photons.global_stored, 0);
+    let img = render_image(&s, &params);
+    assert!(img.pixels.iter().all(|p| p.iter().all(|c| *c == 0.0)));
+}
