@@ -210,7 +210,7 @@ fn albedo_one_in_a_closed_sphere_is_bounded_by_max_depth() {
     );
     let want = depth as f64 * power / (4.0 * PI * PI * radius * radius);
     let mean = out.image.mean_rgb(0, 0, 32, 32)[0];
-    eprintln!("albedo 1: mean {mean:.5} against {want:.5}");
+    eprintln!("albedo 1: {stored} stored of {bound}; mean {mean:.5} against {want:.5}");
     assert!((mean / want - 1.0).abs() < 0.02, "{mean} vs {want}");
 }
 
