@@ -37,7 +37,7 @@ fn switched_off(name: &str) -> Effect {
 }
 
 /// Whether a light contributes, and why not when it does not.
-fn light_effect(scene: &Scene, i: usize, light: &Light, photon: bool) -> Effect {
+fn light_effect(scene: &Scene, i: usize, light: &Light, how: &str) -> Effect {
     if !(max_component(light.power()) > 0.0) {
         return effect(false, "none", "the light emits no power");
     }
@@ -51,11 +51,6 @@ fn light_effect(scene: &Scene, i: usize, light: &Light, photon: bool) -> Effect 
             ),
         );
     }
-    let how = if photon {
-        "photons and shadow rays"
-    } else {
-        "shadow rays"
-    };
     effect(
         true,
         how,
@@ -111,7 +106,7 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
     e.insert(
         "shadows".into(),
         effect(
-            lit,
+            lit && switches.direct_light,
             if shadow_rays {
                 "shadow rays"
             } else {
@@ -205,11 +200,13 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
         },
     );
 
+    let how = match (photon && (global_map || caustic_map), shadow_rays) {
+        (true, true) => "photons and shadow rays",
+        (true, false) => "photons",
+        (false, _) => "shadow rays",
+    };
     for (i, light) in scene.lights.iter().enumerate() {
-        e.insert(
-            format!("lights[{i}]"),
-            light_effect(scene, i, light, photon),
-        );
+        e.insert(format!("lights[{i}]"), light_effect(scene, i, light, how));
     }
 
     let photon_params = PhotonParams {

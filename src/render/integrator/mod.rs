@@ -104,19 +104,6 @@ impl EffectSwitches {
         caustics: true,
         diffuse_interreflection: true,
     };
-
-    /// The switches that are off, by name (as in STATS.json's `effects`).
-    pub fn off(&self) -> Vec<&'static str> {
-        [
-            ("direct_light", self.direct_light),
-            ("caustics", self.caustics),
-            ("diffuse_interreflection", self.diffuse_interreflection),
-        ]
-        .into_iter()
-        .filter(|(_, on)| !on)
-        .map(|(name, _)| name)
-        .collect()
-    }
 }
 
 impl Default for EffectSwitches {
