@@ -779,8 +779,31 @@ fn a_distant_light_leaves_the_camera_defined() {
             "fov": 40, "width": 8, "height": 8},
         "materials": {"m": {"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}},
         "objects": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1}],
-        "lights": [{"type": "point", "position": [0, 0, 1e9], "power": [1, 1, 1]}]}"#;
+        "lights": [{"type": "point", "position": [0, 0, 1e9], "power": [1e15, 1e15, 1e15]}]}"#;
     let scene = Scene::parse(text, None).expect("the loader accepts the scene");
     let d = scene.camera.ray(4.0, 4.0).d;
     assert!(d.is_finite(), "camera ray direction {d:?}");
+    // The same light at 1e4 with its power scaled by (1e4 / 1e9)^2 gives the same image (to
+    // 1e-4 in the light's direction): a distant light must not blur the geometry.
+    let params = RenderParams {
+        integrator: IntegratorKind::Raytrace,
+        spp: 4,
+        width: Some(8),
+        height: Some(8),
+        ..RenderParams::default()
+    };
+    let near = text
+        .replace("[0, 0, 1e9]", "[0, 0, 1e4]")
+        .replace("1e15, 1e15, 1e15", "1e5, 1e5, 1e5");
+    let near = Scene::parse(&near, None).unwrap();
+    let a = render(&scene, &params, &Control::none()).unwrap().image;
+    let b = render(&near, &params, &Control::none()).unwrap().image;
+    let (ma, mb) = (a.mean_rgb(0, 0, 8, 8)[0], b.mean_rgb(0, 0, 8, 8)[0]);
+    assert!(mb > 0.0 && (ma / mb - 1.0).abs() < 1e-3, "{ma} vs {mb}");
+    for (pa, pb) in a.pixels.iter().zip(&b.pixels) {
+        assert!(
+            (pa[0] - pb[0]).abs() <= 1e-3 * pb[0].max(1e-3 * mb as f32),
+            "{pa:?} vs {pb:?}"
+        );
+    }
 }

@@ -24,10 +24,24 @@ use crate::render::math::Rgb;
 
 /// A scene the loader rejected: the JSON path of the offending value and what is wrong.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{path}: {message}")]
+#[error("{}: {}", one_line(.path), one_line(.message))]
 pub struct SceneError {
     pub path: String,
     pub message: String,
+}
+
+/// Control characters escaped (`\n`, `\u{1b}`), so that an error quoting a name from the
+/// scene file (a material called "a\nb") stays one line (found by tests/parser_fuzz.rs).
+fn one_line(s: &str) -> String {
+    s.chars()
+        .flat_map(|c| {
+            if c.is_control() {
+                c.escape_default().collect::<Vec<_>>()
+            } else {
+                vec![c]
+            }
+        })
+        .collect()
 }
 
 /// A validated scene in world coordinates (f64), as the JSON describes it.
@@ -210,7 +224,12 @@ impl Scene {
         let geometry_extent =
             desc.bounds(false)
                 .map_or((hi - lo).length(), |(a, b)| (b - a).length()) as f32;
-        let origin = (lo + hi) * 0.5;
+        // The engine frame is centred on the objects, not on the lights too: a distant
+        // light (a sun at 1e9) must not move the origin away from the geometry, where f32
+        // would leave the scene units apart (found by tests/parser_fuzz.rs).
+        let origin = desc
+            .bounds(false)
+            .map_or((lo + hi) * 0.5, |(a, b)| (a + b) * 0.5);
         let local = |p: DVec3| (p - origin).as_vec3a();
         let vec = |v: DVec3| v.as_vec3a();
 
