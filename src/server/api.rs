@@ -45,14 +45,54 @@ pub fn router(app: AppRef) -> Router {
         .route("/healthz", get(|| async { "ok\n" }))
         .route("/metrics", get(metrics_text))
         .route("/", get(index))
+        .route("/web/{file}", get(web_file))
         .fallback(|| async { ApiError::not_found("route") })
         .layer(DefaultBodyLimit::max(body_limit))
         .layer(middleware::from_fn_with_state(app.clone(), metrics::track))
         .with_state(app)
 }
 
-async fn index() -> Html<&'static str> {
-    Html(include_str!("../../web/index.html"))
+/// The gallery (web/): static files embedded in the binary, so a newcomer needs no build
+/// step and the server nothing beside itself. (file name, content type, content)
+const WEB_FILES: &[(&str, &str, &str)] = &[
+    (
+        "app.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../../web/app.js"),
+    ),
+    (
+        "style.css",
+        "text/css; charset=utf-8",
+        include_str!("../../web/style.css"),
+    ),
+];
+
+/// The page may load only its own files and talk only to this server: an injected script
+/// could read the token from localStorage.
+const CSP: &str = "default-src 'self'; img-src 'self' blob:; object-src 'none'; base-uri 'none'; \
+                   frame-ancestors 'none'";
+
+async fn index() -> Response {
+    (
+        [(header::CONTENT_SECURITY_POLICY, CSP)],
+        Html(include_str!("../../web/index.html")),
+    )
+        .into_response()
+}
+
+async fn web_file(Path(file): Path<String>) -> Result<Response, ApiError> {
+    let (_, mime, text) = WEB_FILES
+        .iter()
+        .find(|(name, _, _)| *name == file)
+        .ok_or_else(|| ApiError::not_found("file"))?;
+    Ok((
+        [
+            (header::CONTENT_TYPE, *mime),
+            (header::CACHE_CONTROL, "no-cache"),
+        ],
+        *text,
+    )
+        .into_response())
 }
 
 /// The user a request's bearer token belongs to.
