@@ -165,7 +165,12 @@ async fn screenshot(c: &Client, name: &str) {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join(name), &png).unwrap();
     let img = image::load_from_memory(&png).unwrap();
-    assert!(img.width() >= 300, "{name}: {}x{}", img.width(), img.height());
+    assert!(
+        img.width() >= 300,
+        "{name}: {}x{}",
+        img.width(),
+        img.height()
+    );
 }
 
 /// The job id of the job page the browser is on.
@@ -341,7 +346,11 @@ async fn submit_watch_compare_in_the_browser() {
     .await;
     assert!(err.as_str().unwrap().starts_with("params.k"), "{err}");
     assert_eq!(
-        js(&c, "return document.getElementById('k').getAttribute('aria-invalid');").await,
+        js(
+            &c,
+            "return document.getElementById('k').getAttribute('aria-invalid');"
+        )
+        .await,
         json!("true")
     );
     // A pasted scene's error names its path under `scene`.
@@ -400,7 +409,11 @@ async fn submit_watch_compare_in_the_browser() {
     .await;
     select(&c, "job-zoom", "2").await;
     assert_eq!(
-        js(&c, "return document.getElementById('job-image').style.width;").await,
+        js(
+            &c,
+            "return document.getElementById('job-image').style.width;"
+        )
+        .await,
         json!("192px"),
         "2x zoom of the 96-pixel image"
     );
@@ -642,7 +655,10 @@ async fn two_users_see_their_own_and_public_jobs_only() {
         10,
     )
     .await;
-    assert_eq!(err, json!(format!("There is no job {bob_private} you may see.")));
+    assert_eq!(
+        err,
+        json!(format!("There is no job {bob_private} you may see."))
+    );
 
     // Signing out forgets the token, also across a reload.
     by_id(&bob, "sign-out").await.click().await.unwrap();

@@ -473,16 +473,19 @@ function formBody() {
   return body;
 }
 
-/// Seconds a job should take on the 2-core reference machine (README: "Time estimate"):
-/// photon tracing and map building at 2.5M photons/s, the camera pass at 0.4 us per camera
-/// or gather ray per pixel sample, ppm's passes each costing both again.
+/// Seconds a job should take on the 2-core reference machine (README: "Time estimate"),
+/// fitted to CLI renders of the Cornell box: photon tracing and map building at 1.7M photons/s;
+/// per camera sample 0.35 us (raytrace), 0.7 us per camera or gather ray (photon), 0.9 us
+/// (ppm, per pass); photon's irradiance precompute 25 ns per global photon and unit of k.
 function estimateSeconds(p) {
   const pixels = (p.width || 384) * (p.height || 384);
   const integ = p.integrator || "photon";
-  const photons = integ === "raytrace" ? 0 : (p.photons || 0) + (p.caustic_photons || 0);
-  const rays = pixels * (p.spp || 1) * (1 + (integ === "raytrace" ? 0 : p.gather_rays || 0));
-  const pass = photons / 2.5e6 + rays * 0.4e-6 + (integ === "photon" ? photons * (p.k || 50) * 2e-9 : 0);
-  return 0.05 + pass * (integ === "ppm" ? p.iterations || 16 : 1);
+  const samples = pixels * (p.spp || 1);
+  if (integ === "raytrace") return 0.05 + samples * 0.35e-6;
+  const photons = (p.photons || 0) + (p.caustic_photons || 0);
+  if (integ === "ppm") return 0.05 + (p.iterations || 16) * (photons / 1.7e6 + samples * 0.9e-6);
+  const gather = p.gather_rays == null ? 8 : p.gather_rays;
+  return 0.05 + photons / 1.7e6 + samples * (1 + gather) * 0.7e-6 + (p.photons || 0) * (p.k || 50) * 25e-9;
 }
 
 /// Finished jobs' measured time over the model's estimate: the model scaled to this server.

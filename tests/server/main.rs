@@ -591,3 +591,42 @@ fn a_progressive_job_yields_its_slot_between_passes() {
     assert_eq!(long_job["stats"]["ppm"]["passes"], 400);
     assert_eq!(long_job["stats"]["ppm"]["stopped_by"], "iterations");
 }
+
+#[test]
+fn the_gallery_page_is_served_from_the_binary() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    assert_eq!(s.sign_in, format!("{}/?token={}", s.base, s.admin));
+    // The page and its files need no token; they hold no data.
+    let r = client().get(&s.sign_in).send().unwrap();
+    assert_eq!(r.status().as_u16(), 200);
+    let csp = r.headers()["content-security-policy"].to_str().unwrap();
+    assert!(
+        csp.starts_with("default-src 'self'; img-src 'self' blob:"),
+        "{csp}"
+    );
+    let html = r.text().unwrap();
+    assert!(html.contains(r#"<script src="/web/app.js" defer></script>"#));
+    for (path, mime, needle) in [
+        (
+            "/web/app.js",
+            "text/javascript; charset=utf-8",
+            "function followEvents",
+        ),
+        (
+            "/web/style.css",
+            "text/css; charset=utf-8",
+            ".gallery-layout",
+        ),
+    ] {
+        let r = client().get(s.url(path)).send().unwrap();
+        assert_eq!(r.status().as_u16(), 200, "{path}");
+        assert_eq!(r.headers()["content-type"], mime, "{path}");
+        assert!(r.text().unwrap().contains(needle), "{path}");
+    }
+    // Only the embedded files: nothing else under /web, and no way out of it.
+    for path in ["/web/index.htm", "/web/..%2FCargo.toml", "/web/"] {
+        let (status, v) = json_of(client().get(s.url(path)).send().unwrap());
+        assert_eq!(status, 404, "{path}: {v}");
+    }
+}
