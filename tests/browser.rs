@@ -459,6 +459,23 @@ async fn submit_watch_compare_in_the_browser() {
         stats.as_str().unwrap().contains("Progressive passes"),
         "{stats}"
     );
+    // The convergence chart: one point per pass, the radius shrinking (SVG y grows down).
+    let radius = js(
+        &c,
+        "return document.querySelector('#job-stats polyline[data-series=\"global radius\"]')
+           .getAttribute('points').split(' ').map(p => Number(p.split(',')[1]));",
+    )
+    .await;
+    let ys: Vec<f64> = serde_json::from_value(radius).unwrap();
+    assert_eq!(ys.len(), 40);
+    assert!(ys.windows(2).all(|w| w[1] >= w[0]), "{ys:?}");
+    assert!(ys[39] > ys[0], "{ys:?}");
+    js(
+        &c,
+        "document.querySelector('#job-stats .charts').scrollIntoView({block: 'end'});",
+    )
+    .await;
+    screenshot(&c, "job-stats.png").await;
     assert_eq!(accessibility_problems(&c).await, json!([]));
 
     // A photon-map job of the same view, to compare with.
