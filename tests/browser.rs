@@ -21,20 +21,17 @@ use serde_json::{Value, json};
 
 /// A program on PATH (or the path in the environment variable `var`), or a clear failure.
 fn find_program(var: &str, names: &[&str]) -> PathBuf {
-    if let Some(p) = std::env::var_os(var) {
-        return PathBuf::from(p);
-    }
-    let path = std::env::var_os("PATH").unwrap_or_default();
-    for dir in std::env::split_paths(&path) {
-        for name in names {
-            let p = dir.join(name);
-            if p.is_file() {
-                return p;
-            }
-        }
+    let candidates: Vec<PathBuf> = match std::env::var_os(var) {
+        Some(p) => vec![PathBuf::from(p)],
+        None => std::env::split_paths(&std::env::var_os("PATH").unwrap_or_default())
+            .flat_map(|dir| names.iter().map(move |n| dir.join(n)))
+            .collect(),
+    };
+    if let Some(p) = candidates.into_iter().find(|p| p.is_file()) {
+        return p;
     }
     panic!(
-        "{} not found on PATH (nor ${var} set): the browser tests need Debian's headless \
+        "{} not found (looked at ${var} if set, else on PATH): the browser tests need Debian's headless \
          Chromium and its WebDriver: `apt-get install -y chromium chromium-driver` \
          (.ci/run does this)",
         names.join(" / ")
