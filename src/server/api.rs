@@ -53,19 +53,28 @@ pub fn router(app: AppRef) -> Router {
 }
 
 /// The gallery (web/): static files embedded in the binary, so a newcomer needs no build
-/// step and the server nothing beside itself. (file name, content type, content)
+/// step and the server nothing beside itself. The scripts are native ES modules: app.js
+/// imports the others by relative URL, so each needs its entry here. (file name, content
+/// type, content)
 const WEB_FILES: &[(&str, &str, &str)] = &[
-    (
-        "app.js",
-        "text/javascript; charset=utf-8",
-        include_str!("../../web/app.js"),
-    ),
+    ("app.js", JS, include_str!("../../web/app.js")),
+    ("api.js", JS, include_str!("../../web/api.js")),
+    ("state.js", JS, include_str!("../../web/state.js")),
+    ("format.js", JS, include_str!("../../web/format.js")),
+    ("gallery.js", JS, include_str!("../../web/gallery.js")),
+    ("submit.js", JS, include_str!("../../web/submit.js")),
+    ("job.js", JS, include_str!("../../web/job.js")),
+    ("charts.js", JS, include_str!("../../web/charts.js")),
+    ("compare.js", JS, include_str!("../../web/compare.js")),
     (
         "style.css",
         "text/css; charset=utf-8",
         include_str!("../../web/style.css"),
     ),
 ];
+
+/// Module scripts must be served with a JavaScript type or the browser refuses them.
+const JS: &str = "text/javascript; charset=utf-8";
 
 /// The page may load only its own files and talk only to this server: an injected script
 /// could read the token from localStorage.
