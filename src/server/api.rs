@@ -45,14 +45,63 @@ pub fn router(app: AppRef) -> Router {
         .route("/healthz", get(|| async { "ok\n" }))
         .route("/metrics", get(metrics_text))
         .route("/", get(index))
+        .route("/web/{file}", get(web_file))
         .fallback(|| async { ApiError::not_found("route") })
         .layer(DefaultBodyLimit::max(body_limit))
         .layer(middleware::from_fn_with_state(app.clone(), metrics::track))
         .with_state(app)
 }
 
-async fn index() -> Html<&'static str> {
-    Html(include_str!("../../web/index.html"))
+/// The gallery (web/): static files embedded in the binary, so a newcomer needs no build
+/// step and the server nothing beside itself. The scripts are native ES modules: app.js
+/// imports the others by relative URL, so each needs its entry here. (file name, content
+/// type, content)
+const WEB_FILES: &[(&str, &str, &str)] = &[
+    ("app.js", JS, include_str!("../../web/app.js")),
+    ("api.js", JS, include_str!("../../web/api.js")),
+    ("state.js", JS, include_str!("../../web/state.js")),
+    ("format.js", JS, include_str!("../../web/format.js")),
+    ("gallery.js", JS, include_str!("../../web/gallery.js")),
+    ("submit.js", JS, include_str!("../../web/submit.js")),
+    ("job.js", JS, include_str!("../../web/job.js")),
+    ("charts.js", JS, include_str!("../../web/charts.js")),
+    ("compare.js", JS, include_str!("../../web/compare.js")),
+    (
+        "style.css",
+        "text/css; charset=utf-8",
+        include_str!("../../web/style.css"),
+    ),
+];
+
+/// Module scripts must be served with a JavaScript type or the browser refuses them.
+const JS: &str = "text/javascript; charset=utf-8";
+
+/// The page may load only its own files and talk only to this server: an injected script
+/// could read the token from localStorage.
+const CSP: &str = "default-src 'self'; img-src 'self' blob:; object-src 'none'; base-uri 'none'; \
+                   frame-ancestors 'none'";
+
+async fn index() -> Response {
+    (
+        [(header::CONTENT_SECURITY_POLICY, CSP)],
+        Html(include_str!("../../web/index.html")),
+    )
+        .into_response()
+}
+
+async fn web_file(Path(file): Path<String>) -> Result<Response, ApiError> {
+    let (_, mime, text) = WEB_FILES
+        .iter()
+        .find(|(name, _, _)| *name == file)
+        .ok_or_else(|| ApiError::not_found("file"))?;
+    Ok((
+        [
+            (header::CONTENT_TYPE, *mime),
+            (header::CACHE_CONTROL, "no-cache"),
+        ],
+        *text,
+    )
+        .into_response())
 }
 
 /// The user a request's bearer token belongs to.

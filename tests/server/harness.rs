@@ -14,6 +14,8 @@ pub struct Server {
     pub base: String,
     pub data: PathBuf,
     pub admin: String,
+    /// The sign-in URL the server printed (`{base}/?token=...`, the admin's token).
+    pub sign_in: String,
 }
 
 impl Server {
@@ -38,6 +40,7 @@ impl Server {
             second.contains(&format!("{base}/?token=")),
             "the server prints a sign-in URL: {second}"
         );
+        let sign_in = second[second.find(&base).unwrap()..].trim().to_string();
         // Keep draining stdout so the server never blocks on a full pipe.
         std::thread::spawn(move || for _ in lines {});
         let admin = std::fs::read_to_string(data.join("admin-token"))
@@ -49,6 +52,7 @@ impl Server {
             base,
             data: data.to_path_buf(),
             admin,
+            sign_in,
         }
     }
 

@@ -591,3 +591,80 @@ fn a_progressive_job_yields_its_slot_between_passes() {
     assert_eq!(long_job["stats"]["ppm"]["passes"], 400);
     assert_eq!(long_job["stats"]["ppm"]["stopped_by"], "iterations");
 }
+
+#[test]
+fn the_gallery_page_is_served_from_the_binary() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    assert_eq!(s.sign_in, format!("{}/?token={}", s.base, s.admin));
+    // The page and its files need no token; they hold no data.
+    let r = client().get(&s.sign_in).send().unwrap();
+    assert_eq!(r.status().as_u16(), 200);
+    let csp = r.headers()["content-security-policy"].to_str().unwrap();
+    assert!(
+        csp.starts_with("default-src 'self'; img-src 'self' blob:"),
+        "{csp}"
+    );
+    let html = r.text().unwrap();
+    // The script is a native ES module (no build step); it imports the others.
+    assert!(html.contains(r#"<script type="module" src="/web/app.js"></script>"#));
+    let js = "text/javascript; charset=utf-8";
+    for (path, mime, needle) in [
+        ("/web/app.js", js, "function route"),
+        ("/web/api.js", js, "function followEvents"),
+        ("/web/state.js", js, "export const state"),
+        ("/web/format.js", js, "function fmtSeconds"),
+        ("/web/gallery.js", js, "function refreshGallery"),
+        ("/web/submit.js", js, "function estimateSeconds"),
+        ("/web/job.js", js, "function openJob"),
+        ("/web/charts.js", js, "function logChart"),
+        ("/web/compare.js", js, "function openCompare"),
+        (
+            "/web/style.css",
+            "text/css; charset=utf-8",
+            ".gallery-layout",
+        ),
+    ] {
+        let r = client().get(s.url(path)).send().unwrap();
+        assert_eq!(r.status().as_u16(), 200, "{path}");
+        assert_eq!(r.headers()["content-type"], mime, "{path}");
+        assert!(r.text().unwrap().contains(needle), "{path}");
+    }
+    // Every module app.js reaches through its imports is served as JavaScript, and each
+    // module above is reached: the embedded table and the imports agree.
+    let mut reached = vec!["app.js".to_string()];
+    let mut next = 0;
+    while let Some(file) = reached.get(next).cloned() {
+        next += 1;
+        let r = client().get(s.url(&format!("/web/{file}"))).send().unwrap();
+        assert_eq!(r.status().as_u16(), 200, "{file}");
+        assert_eq!(r.headers()["content-type"], js, "{file}");
+        let text = r.text().unwrap();
+        for import in text.split(r#" from "./"#).skip(1) {
+            let name = &import[..import.find('"').unwrap()];
+            if !reached.iter().any(|f| f == name) {
+                reached.push(name.to_string());
+            }
+        }
+    }
+    reached.sort();
+    assert_eq!(
+        reached,
+        [
+            "api.js",
+            "app.js",
+            "charts.js",
+            "compare.js",
+            "format.js",
+            "gallery.js",
+            "job.js",
+            "state.js",
+            "submit.js"
+        ]
+    );
+    // Only the embedded files: nothing else under /web, and no way out of it.
+    for path in ["/web/index.htm", "/web/..%2FCargo.toml", "/web/"] {
+        let (status, v) = json_of(client().get(s.url(path)).send().unwrap());
+        assert_eq!(status, 404, "{path}: {v}");
+    }
+}

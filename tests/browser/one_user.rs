@@ -1,0 +1,341 @@
+//! One user through the whole gallery: sign in, the estimate, field errors, a progressive
+//! job watched live, a photon job, the gallery, a comparison, a cancel, a phone's width.
+
+use fantoccini::Locator;
+use fantoccini::key::Key;
+use serde_json::json;
+
+use crate::driver::Driver;
+use crate::harness::Server;
+use crate::page::{
+    accessibility_problems, assert_fits_width, by_id, fill_small, gallery_ids, goto_gallery, js,
+    screenshot, select, submit_form, type_into, wait_for,
+};
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn submit_watch_compare_in_the_browser() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let driver = Driver::start();
+    let c = driver.session().await;
+
+    // Sign in with the printed URL: the token is kept, and dropped from the address bar.
+    c.goto(&s.sign_in).await.unwrap();
+    wait_for(
+        &c,
+        "signed in as admin",
+        "document.getElementById('me').textContent.includes('admin')",
+        10,
+    )
+    .await;
+    let url = c.current_url().await.unwrap();
+    assert!(!url.as_str().contains("token"), "token left in {url}");
+    assert_eq!(
+        js(&c, "return localStorage.getItem('photonbox-token');").await,
+        json!(s.admin)
+    );
+    wait_for(
+        &c,
+        "the built-in scenes",
+        "document.querySelectorAll('#scene-name option').length >= 6",
+        10,
+    )
+    .await;
+    assert_eq!(accessibility_problems(&c).await, json!([]));
+
+    // The estimate follows the settings: final costs more than draft.
+    select(&c, "scene-name", "cornell").await;
+    by_id(&c, "integrator")
+        .await
+        .select_by_value("photon")
+        .await
+        .unwrap();
+    let estimate = "Number(document.getElementById('estimate').dataset.seconds)";
+    c.find(Locator::Css("[data-preset=draft]"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    let draft = wait_for(&c, "a draft estimate", estimate, 5).await;
+    assert_eq!(
+        js(&c, "return document.getElementById('width').value;").await,
+        json!("192"),
+        "draft: half the scene's 384 pixels"
+    );
+    c.find(Locator::Css("[data-preset=final]"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    let fin = wait_for(&c, "a final estimate", estimate, 5).await;
+    assert!(
+        fin.as_f64().unwrap() > 10.0 * draft.as_f64().unwrap(),
+        "final {fin} s vs draft {draft} s"
+    );
+
+    // A bad value comes back with its path and is shown next to that field.
+    fill_small(&c, "photon", 32, false).await;
+    type_into(&c, "k", "0").await;
+    by_id(&c, "submit").await.click().await.unwrap();
+    let err = wait_for(
+        &c,
+        "the k error",
+        "document.getElementById('k-error').textContent",
+        10,
+    )
+    .await;
+    assert!(err.as_str().unwrap().starts_with("params.k"), "{err}");
+    assert_eq!(
+        js(
+            &c,
+            "return document.getElementById('k').getAttribute('aria-invalid');"
+        )
+        .await,
+        json!("true")
+    );
+    // A pasted scene's error names its path under `scene`.
+    c.find(Locator::Css("input[name=scene-source][value=custom]"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    type_into(&c, "scene-json", r#"{"camera": 3}"#).await;
+    type_into(&c, "k", "10").await;
+    by_id(&c, "submit").await.click().await.unwrap();
+    let err = wait_for(
+        &c,
+        "the scene error",
+        "document.getElementById('scene-json-error').textContent",
+        10,
+    )
+    .await;
+    assert!(err.as_str().unwrap().starts_with("scene"), "{err}");
+    assert_eq!(
+        js(&c, "return document.getElementById('k-error').textContent;").await,
+        json!(""),
+        "old errors are cleared"
+    );
+    c.find(Locator::Css("input[name=scene-source][value=builtin]"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+
+    // A progressive job: the bar advances, previews appear and update, then it is done.
+    fill_small(&c, "ppm", 96, true).await;
+    type_into(&c, "photons", "20000").await;
+    type_into(&c, "caustic-photons", "20000").await;
+    type_into(&c, "iterations", "40").await;
+    let ppm = submit_form(&c).await;
+    let progress = "document.getElementById('job-progress').value";
+    let p1 = wait_for(
+        &c,
+        "progress under way",
+        &format!("{progress} > 0 && {progress} < 0.5 && {progress}"),
+        20,
+    )
+    .await
+    .as_f64()
+    .unwrap();
+    wait_for(
+        &c,
+        "a preview while running",
+        "document.getElementById('job-image').naturalWidth > 0 \
+         && document.getElementById('job-progress').dataset.status === 'running'",
+        20,
+    )
+    .await;
+    select(&c, "job-zoom", "2").await;
+    assert_eq!(
+        js(
+            &c,
+            "return document.getElementById('job-image').style.width;"
+        )
+        .await,
+        json!("192px"),
+        "2x zoom of the 96-pixel image"
+    );
+    screenshot(&c, "job-mid-render.png").await;
+    let p2 = wait_for(
+        &c,
+        "progress advancing",
+        &format!("{progress} > {p1} && {progress}"),
+        20,
+    )
+    .await;
+    assert!(p2.as_f64().unwrap() > p1);
+    wait_for(
+        &c,
+        "the job done",
+        "document.getElementById('job-progress-text').dataset.status === 'done'",
+        60,
+    )
+    .await;
+    let img = js(
+        &c,
+        "const i = document.getElementById('job-image'); \
+         return [i.naturalWidth, i.naturalHeight, Number(i.dataset.loads), i.alt, \
+                 document.getElementById('job-progress').value];",
+    )
+    .await;
+    assert_eq!((img[0].as_i64(), img[1].as_i64()), (Some(96), Some(96)));
+    assert!(
+        img[2].as_i64().unwrap() >= 2,
+        "the image updated with previews: {img}"
+    );
+    assert!(img[3].as_str().unwrap().contains("cornell"), "{img}");
+    assert_eq!(img[4].as_f64(), Some(1.0));
+    let stats = wait_for(
+        &c,
+        "the stats",
+        "document.getElementById('job-stats').innerText.includes('Effects simulated') \
+         && document.getElementById('job-stats').innerText",
+        10,
+    )
+    .await;
+    assert!(
+        stats.as_str().unwrap().contains("Progressive passes"),
+        "{stats}"
+    );
+    // The convergence chart: one point per pass, the radius shrinking (SVG y grows down).
+    let radius = js(
+        &c,
+        "return document.querySelector('#job-stats polyline[data-series=\"global radius\"]')
+           .getAttribute('points').split(' ').map(p => Number(p.split(',')[1]));",
+    )
+    .await;
+    let ys: Vec<f64> = serde_json::from_value(radius).unwrap();
+    assert_eq!(ys.len(), 40);
+    assert!(ys.windows(2).all(|w| w[1] >= w[0]), "{ys:?}");
+    assert!(ys[39] > ys[0], "{ys:?}");
+    js(
+        &c,
+        "document.querySelector('#job-stats .charts').scrollIntoView({block: 'end'});",
+    )
+    .await;
+    screenshot(&c, "job-stats.png").await;
+    assert_eq!(accessibility_problems(&c).await, json!([]));
+
+    // A photon-map job of the same view, to compare with.
+    goto_gallery(&c).await;
+    fill_small(&c, "photon", 96, false).await;
+    type_into(&c, "photons", "50000").await;
+    let photon = submit_form(&c).await;
+    wait_for(
+        &c,
+        "the photon job done",
+        "document.getElementById('job-progress-text').dataset.status === 'done' \
+         && document.getElementById('job-image').naturalWidth === 96",
+        60,
+    )
+    .await;
+
+    // The gallery: newest first, thumbnails, live status.
+    goto_gallery(&c).await;
+    wait_for(
+        &c,
+        "two cards with thumbnails",
+        "[...document.querySelectorAll('#gallery > li')].filter(li => \
+           li.dataset.status === 'done' && li.querySelector('img.thumb').naturalWidth > 0).length === 2",
+        20,
+    )
+    .await;
+    assert_eq!(gallery_ids(&c).await, vec![photon, ppm]);
+    let text = js(
+        &c,
+        "return document.querySelector('#gallery > li').innerText;",
+    )
+    .await;
+    let text = text.as_str().unwrap();
+    assert!(text.contains("cornell") && text.contains("photon") && text.contains("96x96"));
+    assert_eq!(accessibility_problems(&c).await, json!([]));
+    screenshot(&c, "gallery.png").await;
+
+    // Compare the two from the job page; move the split by keyboard.
+    js(&c, &format!("location.hash = '#/job/{ppm}';")).await;
+    wait_for(
+        &c,
+        "the compare choice",
+        &format!("document.querySelector('#job-compare-with option[value=\"{photon}\"]')"),
+        10,
+    )
+    .await;
+    select(&c, "job-compare-with", &photon.to_string()).await;
+    by_id(&c, "job-compare").await.click().await.unwrap();
+    wait_for(
+        &c,
+        "both images in the comparison",
+        "document.getElementById('compare-img-a').naturalWidth === 96 \
+         && document.getElementById('compare-img-b').naturalWidth === 96",
+        10,
+    )
+    .await;
+    assert_eq!(
+        js(&c, "return location.hash;").await,
+        json!(format!("#/compare/{ppm}/{photon}"))
+    );
+    select(&c, "compare-zoom", "4").await;
+    let slider = by_id(&c, "compare-split").await;
+    for _ in 0..15 {
+        slider.send_keys(&Key::Left.to_string()).await.unwrap();
+    }
+    let clip = js(
+        &c,
+        "return [document.getElementById('compare-split').value, \
+                 document.getElementById('compare-img-a').style.clipPath];",
+    )
+    .await;
+    assert_eq!(clip, json!(["35", "inset(0px 65% 0px 0px)"]));
+    assert_eq!(accessibility_problems(&c).await, json!([]));
+    screenshot(&c, "compare.png").await;
+
+    // Cancel a long job from its page.
+    goto_gallery(&c).await;
+    fill_small(&c, "ppm", 64, false).await;
+    type_into(&c, "iterations", "100000").await;
+    let long = submit_form(&c).await;
+    wait_for(
+        &c,
+        "the long job running",
+        "document.getElementById('job-progress').value > 0",
+        20,
+    )
+    .await;
+    by_id(&c, "job-cancel").await.click().await.unwrap();
+    wait_for(
+        &c,
+        "the job cancelled",
+        "document.getElementById('job-progress-text').dataset.status === 'cancelled'",
+        20,
+    )
+    .await;
+    assert!(long > photon);
+
+    // A phone's width: nothing scrolls sideways.
+    c.set_window_size(390, 844).await.unwrap();
+    goto_gallery(&c).await;
+    wait_for(
+        &c,
+        "the cards",
+        "document.querySelectorAll('#gallery > li').length === 3",
+        10,
+    )
+    .await;
+    assert_fits_width(&c, "gallery at 390px").await;
+    screenshot(&c, "gallery-phone.png").await;
+    js(&c, &format!("location.hash = '#/job/{ppm}';")).await;
+    wait_for(
+        &c,
+        "the job page",
+        "document.getElementById('job-image').naturalWidth === 96",
+        10,
+    )
+    .await;
+    assert_fits_width(&c, "job page at 390px").await;
+
+    c.close().await.unwrap();
+}

@@ -1,0 +1,258 @@
+// The submit form: scene choice (built-in or JSON), settings and presets, the time estimate,
+// and a server error shown next to the field its `path` names.
+
+import { ApiError, apiJson } from "./api.js";
+import { fmtSeconds } from "./format.js";
+import { $, state } from "./state.js";
+
+/// Presets, per integrator: [photons, caustic photons, k, gather rays, spp, passes, scale of
+/// the scene's own resolution].
+const PRESETS = {
+  draft: { photon: [50000, 50000, 30, 0, 1], ppm: [20000, 20000, 10, 0, 1, 8], raytrace: [0, 0, 0, 0, 1], scale: 0.5 },
+  good: { photon: [200000, 200000, 50, 8, 4], ppm: [100000, 100000, 10, 0, 1, 32], raytrace: [0, 0, 0, 0, 4], scale: 1 },
+  final: { photon: [1000000, 1000000, 100, 16, 16], ppm: [200000, 200000, 10, 0, 1, 256], raytrace: [0, 0, 0, 0, 16], scale: 2 },
+};
+
+function applyPreset(name) {
+  const preset = PRESETS[name];
+  const integ = $("integrator").value;
+  const [photons, caustic, k, gather, spp, passes] = preset[integ];
+  if (integ !== "raytrace") {
+    $("photons").value = photons;
+    $("caustic-photons").value = caustic;
+    $("k").value = k;
+    $("gather-rays").value = gather;
+  }
+  $("spp").value = spp;
+  if (passes) $("iterations").value = passes;
+  const [w, h] = sceneSize();
+  $("width").value = Math.max(1, Math.round(w * preset.scale));
+  $("height").value = Math.max(1, Math.round(h * preset.scale));
+  for (const b of document.querySelectorAll("[data-preset]")) {
+    b.setAttribute("aria-pressed", String(b.dataset.preset === name));
+  }
+  updateEstimate();
+}
+
+/// The chosen scene's own resolution (the camera's), 384x384 when unknown.
+function sceneSize() {
+  if (customScene()) {
+    try {
+      const cam = JSON.parse($("scene-json").value).camera;
+      if (cam && cam.width && cam.height) return [cam.width, cam.height];
+    } catch (_) { /* not valid JSON yet */ }
+    return [384, 384];
+  }
+  return state.sceneSizes.get($("scene-name").value) || [384, 384];
+}
+
+function customScene() {
+  return document.querySelector("input[name=scene-source]:checked").value === "custom";
+}
+
+export function fillScenes() {
+  const sel = $("scene-name");
+  const prev = sel.value;
+  sel.replaceChildren();
+  for (const s of state.scenes) {
+    const o = document.createElement("option");
+    o.value = s.name;
+    o.textContent = s.name;
+    sel.appendChild(o);
+  }
+  if (prev && state.scenes.some((s) => s.name === prev)) sel.value = prev;
+  else if (state.scenes.some((s) => s.name === "cornell")) sel.value = "cornell";
+  onSceneChange();
+}
+
+async function onSceneChange() {
+  const name = $("scene-name").value;
+  const scene = state.scenes.find((s) => s.name === name);
+  $("scene-description").textContent = (scene && scene.description) || "";
+  if (name && !state.sceneSizes.has(name)) {
+    try {
+      const json = await apiJson(`/api/scenes/${encodeURIComponent(name)}`);
+      state.sceneSizes.set(name, [json.camera.width, json.camera.height]);
+    } catch (_) { /* keep the default */ }
+  }
+  updateEstimate();
+}
+
+export function onIntegratorChange() {
+  const integ = $("integrator").value;
+  document.body.dataset.integrator = integ;
+  for (const el of document.querySelectorAll(".ppm-only")) el.hidden = integ !== "ppm";
+  for (const el of document.querySelectorAll(".photon-only")) el.hidden = integ === "raytrace";
+  // The CLI's defaults for the new integrator.
+  if (integ === "ppm") {
+    $("photons").value = 100000; $("caustic-photons").value = 100000;
+    $("k").value = 10; $("gather-rays").value = 0; $("spp").value = 1;
+  } else if (integ === "photon") {
+    $("photons").value = 200000; $("caustic-photons").value = 200000;
+    $("k").value = 50; $("gather-rays").value = 8; $("spp").value = 4;
+  }
+  updateEstimate();
+}
+
+function num(id) {
+  const v = $(id).value.trim();
+  return v === "" ? undefined : Number(v);
+}
+
+/// The request body the form describes.
+function formBody() {
+  const integ = $("integrator").value;
+  const params = { integrator: integ, spp: num("spp"), width: num("width"), height: num("height") };
+  const exposure = num("exposure");
+  if (exposure) params.exposure = exposure;
+  if (integ !== "raytrace") {
+    Object.assign(params, {
+      photons: num("photons"), caustic_photons: num("caustic-photons"), k: num("k"),
+      gather_rays: num("gather-rays"),
+    });
+    const effects = {};
+    if (!$("fx-direct").checked) effects.direct_light = false;
+    if (!$("fx-caustics").checked) effects.caustics = false;
+    if (!$("fx-indirect").checked) effects.diffuse_interreflection = false;
+    if (Object.keys(effects).length) params.effects = effects;
+  }
+  if (integ === "ppm") params.iterations = num("iterations");
+  for (const k of Object.keys(params)) if (params[k] === undefined) delete params[k];
+  const body = { params, public: $("public").checked };
+  if (customScene()) {
+    let scene;
+    try {
+      scene = JSON.parse($("scene-json").value);
+    } catch (e) {
+      throw new ApiError(400, { error: `not valid JSON: ${e.message}`, path: "scene" });
+    }
+    body.scene = scene;
+  } else {
+    body.scene_name = $("scene-name").value;
+  }
+  return body;
+}
+
+/// Seconds a job should take on the 2-core reference machine (README: "Time estimate"),
+/// fitted to CLI renders of the Cornell box: photon tracing and map building at 1.7M photons/s;
+/// per camera sample 0.35 us (raytrace), 0.7 us per camera or gather ray (photon), 0.9 us
+/// (ppm, per pass); photon's irradiance precompute 25 ns per global photon and unit of k.
+function estimateSeconds(p) {
+  const pixels = (p.width || 384) * (p.height || 384);
+  const integ = p.integrator || "photon";
+  const samples = pixels * (p.spp || 1);
+  if (integ === "raytrace") return 0.05 + samples * 0.35e-6;
+  const photons = (p.photons || 0) + (p.caustic_photons || 0);
+  if (integ === "ppm") return 0.05 + (p.iterations || 16) * (photons / 1.7e6 + samples * 0.9e-6);
+  const gather = p.gather_rays == null ? 8 : p.gather_rays;
+  return 0.05 + photons / 1.7e6 + samples * (1 + gather) * 0.7e-6 + (p.photons || 0) * (p.k || 50) * 25e-9;
+}
+
+/// Finished jobs' measured time over the model's estimate: the model scaled to this server.
+function measuredScale() {
+  const ratios = state.jobs
+    .filter((j) => j.status === "done" && j.stats && j.stats.times && j.stats.times.total > 0.2)
+    .slice(0, 10)
+    .map((j) => j.stats.times.total / estimateSeconds(Object.assign({}, j.stats.params, j.params)))
+    .sort((a, b) => a - b);
+  return ratios.length ? ratios[Math.floor(ratios.length / 2)] : null;
+}
+
+export function updateEstimate() {
+  let params;
+  try {
+    params = formBody().params;
+  } catch (_) {
+    $("estimate").textContent = "-";
+    return;
+  }
+  const base = estimateSeconds(params);
+  const scale = measuredScale();
+  const est = scale ? base * scale : base;
+  $("estimate").textContent = `about ${fmtSeconds(est)}`;
+  $("estimate").dataset.seconds = est.toFixed(3);
+  $("estimate-note").textContent = scale
+    ? `(model x ${scale.toFixed(2)}, from your server's recent jobs)`
+    : "(model of a 2-core machine)";
+}
+
+function clearErrors() {
+  $("form-error").textContent = "";
+  for (const el of document.querySelectorAll("#submit-form [aria-invalid]")) {
+    el.removeAttribute("aria-invalid");
+  }
+  for (const el of document.querySelectorAll("#submit-form .field .error, #effects .error")) {
+    el.textContent = "";
+  }
+}
+
+/// Show an API error next to the field its path names (the longest `data-path` prefix).
+function showError(err) {
+  const path = err.path || "";
+  let best = null;
+  for (const el of document.querySelectorAll("#submit-form [data-path]")) {
+    const p = el.dataset.path;
+    const matches = path === p || path.startsWith(`${p}.`) || path.startsWith(`${p}[`);
+    if (matches && (!best || p.length > best.dataset.path.length)) best = el;
+  }
+  // A scene error while a built-in scene is chosen belongs to the scene select.
+  if (best && best.id === "scene-json" && !customScene()) best = $("scene-name");
+  const slot = best && $(`${best.id}-error`);
+  const text = path ? `${path}: ${err.message}` : err.message;
+  if (slot && !best.closest("[hidden]")) {
+    slot.textContent = text;
+    best.setAttribute("aria-invalid", "true");
+    best.focus();
+  } else {
+    $("form-error").textContent = text;
+  }
+}
+
+async function submitForm(ev) {
+  ev.preventDefault();
+  clearErrors();
+  const button = $("submit");
+  button.disabled = true;
+  try {
+    const body = formBody();
+    const res = await apiJson("/api/jobs", {
+      method: "POST",
+      headers: { "Content-Type": "application/json" },
+      body: JSON.stringify(body),
+    });
+    location.hash = `#/job/${res.id}`;
+  } catch (e) {
+    if (e instanceof ApiError) showError(e);
+    else $("form-error").textContent = `Could not submit: ${e.message}`;
+  } finally {
+    button.disabled = false;
+  }
+}
+
+export function initSubmit() {
+  $("submit-form").addEventListener("submit", submitForm);
+  $("submit-form").addEventListener("input", () => {
+    // Edited by hand: no preset describes the settings any more.
+    for (const b of document.querySelectorAll("[data-preset]")) b.removeAttribute("aria-pressed");
+    updateEstimate();
+  });
+  $("scene-name").addEventListener("change", onSceneChange);
+  $("integrator").addEventListener("change", onIntegratorChange);
+  for (const r of document.querySelectorAll("input[name=scene-source]")) {
+    r.addEventListener("change", () => {
+      $("builtin-scene").hidden = customScene();
+      $("custom-scene").hidden = !customScene();
+      updateEstimate();
+    });
+  }
+  $("scene-file").addEventListener("change", async () => {
+    const f = $("scene-file").files[0];
+    if (f) {
+      $("scene-json").value = await f.text();
+      updateEstimate();
+    }
+  });
+  for (const b of document.querySelectorAll("[data-preset]")) {
+    b.addEventListener("click", () => applyPreset(b.dataset.preset));
+  }
+}
