@@ -1,12 +1,13 @@
 // Charts of how a progressive render converged, drawn as inline SVG (no library).
 
 /// A log-log line chart of `series` ([{ name, points: [[x, y]...] }]) as an SVG figure.
-function logChart(title, xLabel, series) {
+function logChart(title, xLabel, series, id) {
   const W = 360, H = 220, L = 48, R = 10, T = 10, B = 34;
   series = series.filter((s) => s.points.some(([x, y]) => x > 0 && y > 0));
   const all = series.flatMap((s) => s.points).filter(([x, y]) => x > 0 && y > 0);
   const fig = document.createElement("figure");
   fig.className = "chart";
+  if (id) fig.id = id;
   const cap = document.createElement("figcaption");
   cap.textContent = title;
   if (all.length < 2) return null;
@@ -39,6 +40,7 @@ function logChart(title, xLabel, series) {
     const pts = s.points.filter(([x, y]) => x > 0 && y > 0);
     add("polyline", {
       class: `line line${i}`, "data-series": s.name,
+      "data-points": pts.length,
       points: pts.map(([x, y]) => `${px(x).toFixed(1)},${py(y).toFixed(1)}`).join(" "),
     });
     add("text", { x: W - R - 4, y: T + 14 + 14 * i, class: `tick end label${i}` }, s.name);
@@ -48,7 +50,7 @@ function logChart(title, xLabel, series) {
 }
 
 /// How a progressive render converged: the estimate radius shrinking pass by pass, the time
-/// per pass, and the error per pass when the render had a reference.
+/// per pass (the error against a reference: see `accuracy`).
 export function convergence(ppm) {
   const h = (ppm && ppm.history) || [];
   if (h.length < 2) return null;
@@ -56,9 +58,6 @@ export function convergence(ppm) {
     { name: "global radius", points: h.map((p) => [p.pass, p.radius_global]) },
     { name: "caustic radius", points: h.map((p) => [p.pass, p.radius_caustic]) },
   ];
-  if (h.some((p) => p.error)) {
-    series.push({ name: "relmse", points: h.filter((p) => p.error).map((p) => [p.pass, p.error.relmse]) });
-  }
   const box = document.createElement("div");
   box.className = "charts";
   const a = logChart("Estimate radius per pass (scene units)", "pass", series);
@@ -66,4 +65,21 @@ export function convergence(ppm) {
     [{ name: "elapsed", points: h.map((p) => [p.pass, p.elapsed]) }]);
   for (const f of [a, b]) if (f) box.appendChild(f);
   return box;
+}
+
+/// How the error against the reference job fell: relmse against elapsed seconds, and
+/// relmse and block_err per pass (log-log), for a progressive render that had a reference.
+export function accuracy(ppm) {
+  const h = ((ppm && ppm.history) || []).filter((p) => p.error);
+  if (h.length < 2) return null;
+  const box = document.createElement("div");
+  box.className = "charts";
+  const a = logChart("Error against the reference vs time (seconds)", "seconds",
+    [{ name: "relmse", points: h.map((p) => [p.elapsed, p.error.relmse]) }], "chart-error-time");
+  const b = logChart("Error against the reference per pass", "pass", [
+    { name: "relmse", points: h.map((p) => [p.pass, p.error.relmse]) },
+    { name: "block_err", points: h.map((p) => [p.pass, p.error.block_err]) },
+  ], "chart-error-pass");
+  for (const f of [a, b]) if (f) box.appendChild(f);
+  return box.children.length ? box : null;
 }

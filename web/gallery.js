@@ -4,7 +4,7 @@
 import { apiJson, loadImage } from "./api.js";
 import { duration, fmtSeconds, fmtTime, integratorOf, keyParams, sceneOf } from "./format.js";
 import { $, state } from "./state.js";
-import { updateEstimate } from "./submit.js";
+import { fillReferences, updateEstimate } from "./submit.js";
 
 export function startGallery() {
   stopGallery();
@@ -33,6 +33,7 @@ export async function refreshGallery() {
   jobs.sort((a, b) => b.id - a.id);
   state.jobs = jobs;
   renderGallery();
+  fillReferences();
   updateEstimate();
 }
 

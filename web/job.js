@@ -2,7 +2,7 @@
 // statistics and charts, downloads, cancel or delete, and the way to a comparison.
 
 import { api, apiJson, followEvents, loadImage } from "./api.js";
-import { convergence } from "./charts.js";
+import { accuracy, convergence } from "./charts.js";
 import {
   PHASES, duration, fmtCount, fmtSeconds, fmtTime, integratorOf, isFinal, keyParams, sceneOf,
 } from "./format.js";
@@ -210,6 +210,18 @@ function showStats(job) {
     const chart = convergence(s.ppm);
     if (chart) box.appendChild(chart);
   }
+  if (s.error) {
+    const e = s.error;
+    const ref = job.params && job.params.reference_job;
+    box.appendChild(table(`Error against the reference (job ${ref != null ? ref : "?"})`, [
+      ["relmse", e.relmse.toPrecision(4)],
+      ["block_err", e.block_err.toPrecision(4)],
+      ["mean_ratio", e.mean_ratio.toPrecision(4)],
+      ["rmse", e.rmse.toPrecision(4)],
+    ]));
+  }
+  const errors = accuracy(s.ppm);
+  if (errors) box.appendChild(errors);
 }
 
 

@@ -2,7 +2,7 @@
 // and a server error shown next to the field its `path` names.
 
 import { ApiError, apiJson } from "./api.js";
-import { fmtSeconds } from "./format.js";
+import { fmtSeconds, sceneOf } from "./format.js";
 import { $, state } from "./state.js";
 
 /// Presets, per integrator: [photons, caustic photons, k, gather rays, spp, passes, scale of
@@ -65,6 +65,25 @@ export function fillScenes() {
   onSceneChange();
 }
 
+/// The reference choice: finished jobs the user may see, newest first (`state.jobs`).
+export function fillReferences() {
+  const sel = $("reference-job");
+  const prev = sel.value;
+  const none = document.createElement("option");
+  none.value = "";
+  none.textContent = "none";
+  const options = [none];
+  for (const j of state.jobs.filter((j) => j.status === "done")) {
+    const o = document.createElement("option");
+    o.value = j.id;
+    const p = (j.stats && j.stats.params) || {};
+    o.textContent = `#${j.id} ${sceneOf(j)} (${p.integrator || "?"}, ${p.width}x${p.height})`;
+    options.push(o);
+  }
+  sel.replaceChildren(...options);
+  if (options.some((o) => o.value === prev)) sel.value = prev;
+}
+
 async function onSceneChange() {
   const name = $("scene-name").value;
   const scene = state.scenes.find((s) => s.name === name);
@@ -117,6 +136,8 @@ function formBody() {
     if (Object.keys(effects).length) params.effects = effects;
   }
   if (integ === "ppm") params.iterations = num("iterations");
+  const reference = $("reference-job").value;
+  if (reference) params.reference_job = Number(reference);
   for (const k of Object.keys(params)) if (params[k] === undefined) delete params[k];
   const body = { params, public: $("public").checked };
   if (customScene()) {

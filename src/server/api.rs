@@ -252,6 +252,14 @@ async fn submit_job(
         Ok((scene, needs))
     })
     .await?;
+    if let Some(reference) = params.reference_job {
+        let p = &params.render;
+        let size = (
+            p.width.unwrap_or(scene.desc.camera.width),
+            p.height.unwrap_or(scene.desc.camera.height),
+        );
+        check_reference(&app, &user, reference, size)?;
+    }
     if app.jobs.queued_of(user.id) >= limits.max_queued_per_user {
         return Err(ApiError::new(
             StatusCode::TOO_MANY_REQUESTS,
@@ -287,6 +295,48 @@ async fn submit_job(
     let body =
         json!({ "id": id, "status": "queued", "links": { "self": format!("/api/jobs/{id}") } });
     Ok((StatusCode::ACCEPTED, Json(body)).into_response())
+}
+
+/// A reference job must be one the user may see, be done, and have this job's `size`.
+fn check_reference(
+    app: &AppRef,
+    user: &User,
+    reference: i64,
+    size: (u32, u32),
+) -> Result<(), ApiError> {
+    let invalid = |msg: String| ApiError::invalid("params.reference_job", msg);
+    let row = match app.jobs.view(reference) {
+        Some((row, _)) if visible(user, &row) => row,
+        _ => return Err(invalid(format!("no job {reference} that you may see"))),
+    };
+    if row.status != Status::Done {
+        return Err(invalid(format!(
+            "job {reference} is {}: a reference must be done",
+            row.status.as_str()
+        )));
+    }
+    let stats: Value = row
+        .stats_json
+        .as_deref()
+        .and_then(|s| serde_json::from_str(s).ok())
+        .unwrap_or(Value::Null);
+    let dim = |k: &str| {
+        stats["params"][k]
+            .as_u64()
+            .and_then(|v| u32::try_from(v).ok())
+    };
+    let ref_size = (dim("width"), dim("height"));
+    if ref_size != (Some(size.0), Some(size.1)) {
+        let shown = |v: Option<u32>| v.map_or("?".to_string(), |v| v.to_string());
+        return Err(invalid(format!(
+            "job {reference} is {}x{}, this job {}x{}: a reference must have the same width and height",
+            shown(ref_size.0),
+            shown(ref_size.1),
+            size.0,
+            size.1
+        )));
+    }
+    Ok(())
 }
 
 async fn delete_job(

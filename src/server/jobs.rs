@@ -61,6 +61,9 @@ pub struct ParamsJson {
     /// Effects to switch off, e.g. `{"caustics": false}`; unnamed ones stay on.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub effects: Option<EffectsJson>,
+    /// A finished job (same width and height) whose EXR this job is measured against.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_job: Option<i64>,
 }
 
 /// `params.effects`: each effect on (true, the default) or off.
@@ -90,6 +93,8 @@ impl EffectsJson {
 pub struct JobParams {
     pub render: RenderParams,
     pub exposure: f32,
+    /// The job whose EXR the result is measured against.
+    pub reference_job: Option<i64>,
 }
 
 /// Deserialize `value` as `T`, naming the JSON path of the first problem under `prefix`.
@@ -168,7 +173,11 @@ impl ParamsJson {
         render
             .validate()
             .map_err(|e| ApiError::invalid(format!("params.{}", e.field), e.message))?;
-        Ok(JobParams { render, exposure })
+        Ok(JobParams {
+            render,
+            exposure,
+            reference_job: self.reference_job,
+        })
     }
 }
 

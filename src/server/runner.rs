@@ -13,7 +13,9 @@ use super::cache::CacheOutcome;
 use super::jobs::{JobParams, ParamsJson, cache_key, resolve_scene, result_path};
 use super::state::Snapshot;
 use super::store::{Status, now};
+use crate::render::accuracy::compare;
 use crate::render::effects::analyse;
+use crate::render::film::Image;
 use crate::render::photon::build_photon_maps;
 use crate::render::ppm::{self, PpmError, PpmOptions, PpmState, Stop, StopReason};
 use crate::render::{
@@ -145,6 +147,18 @@ fn execute(
     )
     .map_err(|e| bad(e.message))?;
     let scene = Scene::build(&resolved.desc);
+    // The reference job's image; it may have been deleted since this job was submitted.
+    let reference = match params.reference_job {
+        Some(rid) => {
+            let path = result_path(&app.config.data, rid, "exr");
+            Some(output::read_exr(&path).map_err(|e| {
+                bad(format!(
+                    "reference job {rid}: its image cannot be read (was the job deleted?): {e}"
+                ))
+            })?)
+        }
+        None => None,
+    };
     let p = &params.render;
     let width = p.width.unwrap_or(scene.camera.width) as u64;
     let height = p.height.unwrap_or(scene.camera.height) as u64;
@@ -208,7 +222,16 @@ fn execute(
     let (out, outcome, key) = if p.integrator == IntegratorKind::Ppm {
         let scene_json = resolved.json.to_string();
         let out = pool.install(|| {
-            render_progressive(app, id, &scene_json, &scene, &params, &control, &live)
+            render_progressive(
+                app,
+                id,
+                &scene_json,
+                &scene,
+                &params,
+                reference.as_ref(),
+                &control,
+                &live,
+            )
         })?;
         (out, CacheOutcome::NotNeeded, None)
     } else {
@@ -223,7 +246,11 @@ fn execute(
                 app.cache
                     .get_or_build(&key, cancel, || build_photon_maps(&scene, &pp, &control))?
             };
-            let out = render_with_maps(&scene, &maps, p, &control)?;
+            let mut out = render_with_maps(&scene, &maps, p, &control)?;
+            if let Some(r) = &reference {
+                out.stats.error =
+                    Some(compare(&out.image, r).map_err(|e| bad(format!("reference job: {e}")))?);
+            }
             Ok((out, outcome, Some(key)))
         })?
     };
@@ -262,12 +289,14 @@ fn execute(
 /// A `ppm` job, pass by pass: after each pass the preview images and the running state
 /// are written (atomically) and a preview is published; a job interrupted by a restart
 /// resumes from its last saved pass, with the same bytes as an uninterrupted render.
+#[allow(clippy::too_many_arguments)]
 fn render_progressive(
     app: &Arc<App>,
     id: i64,
     scene_json: &str,
     scene: &Scene,
     params: &JobParams,
+    reference: Option<&Image>,
     control: &Control,
     live: &watch::Sender<Snapshot>,
 ) -> Result<RenderOutput, Failure> {
@@ -281,6 +310,7 @@ fn render_progressive(
         .filter(|s| s.fingerprint == fingerprint);
     let opts = PpmOptions {
         resume,
+        reference,
         ..PpmOptions::new(Stop::after(p.iterations), fingerprint)
     };
     let png = result_path(&app.config.data, id, "png");

@@ -315,13 +315,70 @@ async fn submit_watch_compare_in_the_browser() {
     .await;
     assert!(long > photon);
 
+    // A progressive job measured against the first one, chosen in the form: its page
+    // charts the error against time and per pass, one point per pass.
+    goto_gallery(&c).await;
+    fill_small(&c, "ppm", 96, false).await;
+    type_into(&c, "iterations", "6").await;
+    wait_for(
+        &c,
+        "the reference choice",
+        &format!("document.querySelector('#reference-job option[value=\"{ppm}\"]')"),
+        10,
+    )
+    .await;
+    select(&c, "reference-job", &ppm.to_string()).await;
+    let measured = submit_form(&c).await;
+    let points = |chart: &str, series: &str| {
+        format!(
+            "Number(document.querySelector('#{chart} polyline[data-series=\"{series}\"]') \
+             ?.dataset.points)"
+        )
+    };
+    let n = wait_for(
+        &c,
+        "the error charts",
+        &format!(
+            "document.getElementById('job-progress-text').dataset.status === 'done' \
+             && {}",
+            points("chart-error-time", "relmse")
+        ),
+        30,
+    )
+    .await;
+    assert_eq!(n.as_f64(), Some(6.0), "one point per pass against time");
+    for series in ["relmse", "block_err"] {
+        let n = js(
+            &c,
+            &format!("return {};", points("chart-error-pass", series)),
+        )
+        .await;
+        assert_eq!(n.as_f64(), Some(6.0), "{series} per pass");
+    }
+    let stats = js(&c, "return document.getElementById('job-stats').innerText;").await;
+    assert!(
+        stats
+            .as_str()
+            .unwrap()
+            .contains(&format!("Error against the reference (job {ppm})")),
+        "{stats}"
+    );
+    assert!(measured > long);
+    js(
+        &c,
+        "document.getElementById('chart-error-pass').scrollIntoView({block: 'end'});",
+    )
+    .await;
+    screenshot(&c, "job-accuracy.png").await;
+    assert_eq!(accessibility_problems(&c).await, json!([]));
+
     // A phone's width: nothing scrolls sideways.
     c.set_window_size(390, 844).await.unwrap();
     goto_gallery(&c).await;
     wait_for(
         &c,
         "the cards",
-        "document.querySelectorAll('#gallery > li').length === 3",
+        "document.querySelectorAll('#gallery > li').length === 4",
         10,
     )
     .await;

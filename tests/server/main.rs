@@ -668,3 +668,97 @@ fn the_gallery_page_is_served_from_the_binary() {
         assert_eq!(status, 404, "{path}: {v}");
     }
 }
+
+/// A job measured against a finished reference job: a ppm job's stats carry the error of
+/// every pass, a photon job's its final error; a reference that is unknown, another
+/// user's private job, not done or of another size is refused by name; one deleted before
+/// the job runs fails the job with a clear error.
+#[test]
+fn jobs_are_measured_against_a_reference_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let t = s.admin.clone();
+    let ppm = |iterations: u32, photons: u32, seed: u32| {
+        json!({
+            "scene_name": "cornell",
+            "params": {"integrator": "ppm", "iterations": iterations, "width": 48,
+                       "height": 32, "photons": photons, "caustic_photons": photons,
+                       "seed": seed}
+        })
+    };
+    let reference = run_to_done(&s, &t, ppm(24, 40000, 7));
+
+    let mut measured = ppm(8, 10000, 1);
+    measured["params"]["reference_job"] = json!(reference);
+    let id = run_to_done(&s, &t, measured);
+    let (_, job) = get(&s, &t, &format!("/api/jobs/{id}"));
+    assert_eq!(job["params"]["reference_job"], reference);
+    let history = job["stats"]["ppm"]["history"].as_array().unwrap();
+    assert_eq!(history.len(), 8);
+    let relmse: Vec<f64> = history
+        .iter()
+        .map(|h| h["error"]["relmse"].as_f64().unwrap())
+        .collect();
+    assert!(
+        relmse.iter().all(|e| e.is_finite() && *e > 0.0),
+        "{relmse:?}"
+    );
+    assert!(
+        relmse[7] < relmse[0],
+        "the error falls over the passes: {relmse:?}"
+    );
+    assert!(history.iter().all(|h| h["error"]["block_err"].is_f64()));
+    assert_eq!(job["stats"]["error"]["relmse"].as_f64(), Some(relmse[7]));
+
+    let mut photon = small("cornell");
+    photon["params"]["reference_job"] = json!(reference);
+    let id = run_to_done(&s, &t, photon.clone());
+    let (_, job) = get(&s, &t, &format!("/api/jobs/{id}"));
+    let e = &job["stats"]["error"];
+    assert!(e["relmse"].as_f64().unwrap().is_finite(), "{e}");
+    let ratio = e["mean_ratio"].as_f64().unwrap();
+    assert!((0.5..2.0).contains(&ratio), "{e}");
+
+    // Refused: unknown, another user's private job, not done, another size.
+    let bob = s.add_user("bob");
+    let refused = |token: &str, body: &Value, why: &str| {
+        let (status, v) = post(&s, token, body);
+        assert_eq!(
+            (status, v["path"].as_str()),
+            (422, Some("params.reference_job")),
+            "{why}: {v}"
+        );
+        assert!(!v["error"].as_str().unwrap_or("").is_empty(), "{v}");
+        v
+    };
+    let with_ref = |body: &Value, r: i64| {
+        let mut b = body.clone();
+        b["params"]["reference_job"] = json!(r);
+        b
+    };
+    refused(&t, &with_ref(&photon, 999_999), "unknown");
+    refused(
+        &bob,
+        &with_ref(&photon, reference),
+        "another user's private job",
+    );
+    let mut other_size = with_ref(&photon, reference);
+    other_size["params"]["width"] = json!(40);
+    let v = refused(&t, &other_size, "another size");
+    assert!(v["error"].as_str().unwrap().contains("48x32"), "{v}");
+    let running = submit(&s, &t, long());
+    refused(&t, &with_ref(&long(), running), "not done");
+
+    // The reference is deleted while the job waits (behind this user's running job).
+    let waiting = submit(&s, &t, with_ref(&photon, reference));
+    assert_eq!(delete(&s, &t, reference).0, 204);
+    delete(&s, &t, running);
+    let evs = follow_to_end(&s, &t, waiting);
+    assert_eq!(evs.last().unwrap().name, "failed", "{evs:?}");
+    let (_, job) = get(&s, &t, &format!("/api/jobs/{waiting}"));
+    let error = job["error"].as_str().unwrap();
+    assert!(
+        error.contains(&format!("reference job {reference}")),
+        "{error}"
+    );
+}
