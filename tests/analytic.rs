@@ -4,7 +4,7 @@ mod common;
 
 use std::f64::consts::PI;
 
-use common::{fresnel, rel, render_image, scene};
+use common::{analytic_pixels, fresnel, point_lit, rel, render_image, scene};
 use glam::DVec3;
 use photonbox::render::photon::PhotonStore;
 use photonbox::render::{Control, IntegratorKind, RenderParams, Scene, trace_maps};
@@ -24,33 +24,16 @@ fn floor_scene(power: f64, albedo: f64) -> String {
 }
 
 /// The analytic radiance L = albedo/pi * P/(4 pi) * cos(theta) / d^2, averaged over each
-/// pixel (8x8 points, matching the box filter), for the scene above.
+/// pixel like the box filter (`common::analytic_pixels`), for the scene above.
 fn floor_analytic(scene: &Scene, power: f64, albedo: f64) -> Vec<f64> {
     let light = DVec3::new(0.3, 1.0, -0.2);
-    let cam = &scene.camera;
-    let mut out = Vec::new();
-    for y in 0..cam.height {
-        for x in 0..cam.width {
-            let mut sum = 0.0;
-            for j in 0..8 {
-                for i in 0..8 {
-                    let r = cam.ray(
-                        x as f32 + (i as f32 + 0.5) / 8.0,
-                        y as f32 + (j as f32 + 0.5) / 8.0,
-                    );
-                    let o = r.o.as_dvec3() + scene.frame_origin;
-                    let d = r.d.as_dvec3();
-                    let hit = o + d * (-o.y / d.y);
-                    let to_light = light - hit;
-                    let d2 = to_light.length_squared();
-                    let cos = to_light.y / d2.sqrt();
-                    sum += albedo / PI * power / (4.0 * PI) * cos / d2;
-                }
-            }
-            out.push(sum / 64.0);
-        }
-    }
-    out
+    analytic_pixels(scene, |o, d| {
+        let hit = o + d * (-o.y / d.y);
+        Some(point_lit(hit, DVec3::Y, light, power, albedo))
+    })
+    .into_iter()
+    .map(|v| v.expect("every camera ray meets the floor"))
+    .collect()
 }
 
 fn channel0(img: &photonbox::render::Image) -> Vec<f64> {

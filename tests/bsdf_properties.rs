@@ -4,6 +4,8 @@
 //! materials and random streams. Each test has a modest default case count so that the
 //! file runs in a few seconds; `PROPTEST_CASES=N` sets every test's count to N.
 
+mod common;
+
 use std::f32::consts::TAU;
 use std::f64::consts::PI;
 
@@ -17,16 +19,6 @@ use photonbox::render::sampling::{
     power_cosine_pdf, uniform_cone, uniform_sphere,
 };
 use proptest::prelude::*;
-
-/// `default` cases unless PROPTEST_CASES says otherwise (`ProptestConfig::with_cases` would
-/// ignore the variable).
-fn config(default: u32) -> ProptestConfig {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default);
-    ProptestConfig::with_cases(cases)
-}
 
 // ----- strategies -----
 
@@ -222,7 +214,7 @@ fn ks_bound(n: usize) -> f64 {
 // ----- properties -----
 
 proptest! {
-    #![proptest_config(config(256))]
+    #![proptest_config(common::proptest_config(256))]
 
     /// f(wo, wi) = f(wi, wo) for the non-delta materials (Helmholtz reciprocity), for
     /// directions on either side and any normal. Directions within 1e-3 of the surface
@@ -355,7 +347,7 @@ proptest! {
 }
 
 proptest! {
-    #![proptest_config(config(64))]
+    #![proptest_config(common::proptest_config(64))]
 
     /// No material creates energy: the directional albedo, the mean sample weight over 2^15
     /// samples from a stream seeded by proptest, is at most 1 per channel up to six standard

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{render_image, scene};
+use common::{render_checked, scene};
 use photonbox::render::{Control, EffectSwitches, RenderParams, Scene, render};
 
 fn scene_file(name: &str) -> Scene {
@@ -53,8 +53,7 @@ fn the_effects_switched_on_one_at_a_time_add_up_to_the_full_image() {
     let full = render(&s, &small(EffectSwitches::ALL_ON), &Control::none()).unwrap();
     let mut sum = [0.0; 3];
     for name in ["direct_light", "caustics", "diffuse_interreflection"] {
-        let out = render(&s, &small(only(name)), &Control::none()).unwrap();
-        common::assert_all_finite(&out.image);
+        let out = render_checked(&s, &small(only(name)));
         let m = mean(&out.image);
         eprintln!("{name}: mean {m:?}");
         assert!(m[0] > 1e-3, "{name} alone lights the box: {m:?}");
@@ -207,9 +206,8 @@ fn with_every_light_shut_in_nothing_is_traced_and_the_image_is_black() {
         spp: 1,
         ..RenderParams::default()
     };
-    let out = render(&s, &params, &Control::none()).unwrap();
+    let out = render_checked(&s, &params);
     assert_eq!(out.stats.photons.global_emitted, 0);
     assert_eq!(out.stats.photons.global_stored, 0);
-    let img = render_image(&s, &params);
-    assert!(img.pixels.iter().all(|p| p.iter().all(|c| *c == 0.0)));
+    assert!(out.image.pixels.iter().all(|p| p.iter().all(|c| *c == 0.0)));
 }

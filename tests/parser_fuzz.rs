@@ -9,6 +9,8 @@
 //! The suite's case counts keep the file at a few seconds; `PROPTEST_CASES=N` sets every
 //! test's count to N for a longer run (docs/fuzzing.md).
 
+mod common;
+
 use photonbox::render::geometry::Surface;
 use photonbox::render::scene::{LightDesc, ShapeDesc};
 use photonbox::render::{
@@ -20,15 +22,6 @@ use serde_json::{Map, Value, json};
 
 const CORNELL: &str = include_str!("../scenes/cornell.json");
 const GLASS_ORANGE: &str = include_str!("../scenes/glass_orange.json");
-
-/// `default` cases unless PROPTEST_CASES says otherwise.
-fn config(default: u32) -> ProptestConfig {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default);
-    ProptestConfig::with_cases(cases)
-}
 
 // ----- the checks -----
 
@@ -674,7 +667,7 @@ fn mutated_scene() -> impl Strategy<Value = Value> {
 // ----- properties -----
 
 proptest! {
-    #![proptest_config(config(4096))]
+    #![proptest_config(common::proptest_config(4096))]
 
     /// (a) Whatever the text, parsing returns (see [`parse_and_render`] for the checks).
     #[test]

@@ -6,12 +6,15 @@ mod common;
 
 use std::f64::consts::PI;
 
-use common::{analytic_pixels, check_against, fresnel, point_lit, ray_sphere, render_image, scene};
+use common::{
+    analytic_pixels, check_against, fresnel, point_lit, ray_sphere, render_checked, render_image,
+    scene,
+};
 use glam::DVec3;
 use photonbox::render::accuracy::compare;
 use photonbox::render::output::read_exr;
 use photonbox::render::photon::PhotonStore;
-use photonbox::render::{Control, IntegratorKind, RenderParams, Scene, render};
+use photonbox::render::{IntegratorKind, RenderParams, Scene};
 
 fn repo(rel: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
@@ -134,9 +137,7 @@ fn light_inside_a_glass_sphere_lights_the_floor_as_a_bare_light() {
         spp: 1,
         ..RenderParams::default()
     };
-    let out = render(&s, &params, &Control::none()).unwrap();
-    common::assert_all_finite(&out.image);
-    assert_eq!(out.stats.nonfinite_samples, 0);
+    let out = render_checked(&s, &params);
     // One estimate per pixel from k = 100 photons (10% noise): the mean carries the check.
     check_against("light in glass", &out.image, &want, 0.6, 0.0, 0.01);
 }
@@ -200,8 +201,7 @@ fn albedo_one_in_a_closed_sphere_is_bounded_by_max_depth() {
         max_depth: depth,
         ..RenderParams::default()
     };
-    let out = render(&s, &params, &Control::none()).unwrap();
-    common::assert_all_finite(&out.image);
+    let out = render_checked(&s, &params);
     let stored = out.stats.photons.global_stored;
     let bound = 100_000 * depth as u64;
     assert!(
@@ -227,8 +227,7 @@ fn k_larger_than_the_photons_stored() {
         spp: 1,
         ..RenderParams::default()
     };
-    let out = render(&s, &params, &Control::none()).unwrap();
-    common::assert_all_finite(&out.image);
+    let out = render_checked(&s, &params);
     assert!(out.stats.photons.global_stored < 50_000);
     let want = (a / PI) * power / (4.0 * PI * radius * radius) / (1.0 - a);
     let mean = out.image.mean_rgb(0, 0, 32, 32)[0];
@@ -258,8 +257,7 @@ fn no_photon_stored() {
         spp: 1,
         ..RenderParams::default()
     };
-    let out = render(&s, &params, &Control::none()).unwrap();
-    common::assert_all_finite(&out.image);
+    let out = render_checked(&s, &params);
     assert!(out.stats.photons.global_emitted > 0);
     assert_eq!(out.stats.photons.global_stored, 0);
     let (lit, black): (Vec<f32>, Vec<f32>) = out

@@ -9,7 +9,7 @@ use anyhow::Context;
 use clap::{Args, ValueEnum};
 
 use crate::{bad, progress};
-use photonbox::render::accuracy::{ImageError, compare};
+use photonbox::render::accuracy::ImageError;
 use photonbox::render::ppm::{self, PpmOptions, PpmState, Stop};
 use photonbox::render::{
     self, Control, EffectSwitches, Image, IntegratorKind, PhotonStore, RenderOutput, RenderParams,
@@ -277,10 +277,8 @@ pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
         let mut out = pool
             .install(|| render::render(&scene, &params, &control))
             .context("render")?;
-        if let Some(r) = &reference {
-            out.stats.error =
-                Some(compare(&out.image, r).map_err(|e| bad(format!("--reference: {e}")))?);
-        }
+        out.measure(reference.as_ref())
+            .map_err(|e| bad(format!("--reference: {e}")))?;
         out
     };
     if let Some(b) = &bars {

@@ -5,6 +5,7 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
+use crate::render::accuracy::{SizeMismatch, compare};
 use crate::render::camera::Camera;
 use crate::render::control::{Cancelled, Control};
 use crate::render::effects::analyse;
@@ -28,6 +29,17 @@ const CAUSTIC_SEARCH_FRACTION: f32 = 0.01;
 pub struct RenderOutput {
     pub image: Image,
     pub stats: RenderStats,
+}
+
+impl RenderOutput {
+    /// Record the image's errors against `reference`, if any, in `stats.error` (a ppm render
+    /// records them itself, after every pass).
+    pub fn measure(&mut self, reference: Option<&Image>) -> Result<(), SizeMismatch> {
+        if let Some(r) = reference {
+            self.stats.error = Some(compare(&self.image, r)?);
+        }
+        Ok(())
+    }
 }
 
 /// Trace the photon maps a job needs (none for `raytrace`).

@@ -13,7 +13,6 @@ use super::cache::CacheOutcome;
 use super::jobs::{JobParams, ParamsJson, cache_key, resolve_scene, result_path};
 use super::state::Snapshot;
 use super::store::{Status, now};
-use crate::render::accuracy::compare;
 use crate::render::effects::analyse;
 use crate::render::film::Image;
 use crate::render::photon::build_photon_maps;
@@ -247,10 +246,8 @@ fn execute(
                     .get_or_build(&key, cancel, || build_photon_maps(&scene, &pp, &control))?
             };
             let mut out = render_with_maps(&scene, &maps, p, &control)?;
-            if let Some(r) = &reference {
-                out.stats.error =
-                    Some(compare(&out.image, r).map_err(|e| bad(format!("reference job: {e}")))?);
-            }
+            out.measure(reference.as_ref())
+                .map_err(|e| bad(format!("reference job: {e}")))?;
             Ok((out, outcome, Some(key)))
         })?
     };

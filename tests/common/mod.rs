@@ -1,22 +1,28 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
-use photonbox::render::{Control, Image, RenderParams, Scene, render};
+use photonbox::render::{Control, Image, RenderOutput, RenderParams, Scene, render};
 
 /// Parse a scene from JSON text (no folder: no OBJ files).
 pub fn scene(json: &str) -> Scene {
     Scene::parse(json, None).unwrap_or_else(|e| panic!("test scene does not parse: {e}"))
 }
 
-/// Render on the current thread pool, with no progress or cancel hooks.
-pub fn render_image(scene: &Scene, params: &RenderParams) -> Image {
+/// Render on the current thread pool, with no progress or cancel hooks; every pixel must be
+/// finite and no sample dropped as non-finite.
+pub fn render_checked(scene: &Scene, params: &RenderParams) -> RenderOutput {
     let out = render(scene, params, &Control::none()).expect("not cancelled");
     assert_all_finite(&out.image);
     assert_eq!(
         out.stats.nonfinite_samples, 0,
         "non-finite samples were dropped"
     );
-    out.image
+    out
+}
+
+/// [`render_checked`]'s image.
+pub fn render_image(scene: &Scene, params: &RenderParams) -> Image {
+    render_checked(scene, params).image
 }
 
 pub fn assert_all_finite(img: &Image) {
@@ -193,4 +199,14 @@ pub fn fresnel(cos_i: f64, n_i: f64, n_t: f64) -> f64 {
     let rs = (n_i * cos_i - n_t * cos_t) / (n_i * cos_i + n_t * cos_t);
     let rp = (n_t * cos_i - n_i * cos_t) / (n_t * cos_i + n_i * cos_t);
     0.5 * (rs * rs + rp * rp)
+}
+
+/// proptest's configuration with `default` cases unless PROPTEST_CASES says otherwise
+/// (`ProptestConfig::with_cases` alone would ignore the variable).
+pub fn proptest_config(default: u32) -> proptest::prelude::ProptestConfig {
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default);
+    proptest::prelude::ProptestConfig::with_cases(cases)
 }

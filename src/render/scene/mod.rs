@@ -221,15 +221,13 @@ impl Scene {
 
     pub fn build(desc: &SceneDesc) -> Scene {
         let (lo, hi) = desc.bounds(true).unwrap_or((DVec3::ZERO, DVec3::ZERO));
-        let geometry_extent =
-            desc.bounds(false)
-                .map_or((hi - lo).length(), |(a, b)| (b - a).length()) as f32;
-        // The engine frame is centred on the objects, not on the lights too: a distant
-        // light (a sun at 1e9) must not move the origin away from the geometry, where f32
-        // would leave the scene units apart (found by tests/parser_fuzz.rs).
-        let origin = desc
-            .bounds(false)
-            .map_or((lo + hi) * 0.5, |(a, b)| (a + b) * 0.5);
+        // The objects' bounds (everything's, if there are none) give the scene's length
+        // scale and the engine frame's centre. Not the lights': a distant light (a sun at
+        // 1e9) must not move the origin away from the geometry, where f32 would leave the
+        // scene units apart (found by tests/parser_fuzz.rs).
+        let (geo_lo, geo_hi) = desc.bounds(false).unwrap_or((lo, hi));
+        let geometry_extent = (geo_hi - geo_lo).length() as f32;
+        let origin = (geo_lo + geo_hi) * 0.5;
         let local = |p: DVec3| (p - origin).as_vec3a();
         let vec = |v: DVec3| v.as_vec3a();
 
