@@ -1,13 +1,20 @@
-//! End-to-end tests of the gallery (web/) in a real browser: Debian's headless Chromium,
-//! driven through chromedriver (WebDriver) with fantoccini, against a real `photonbox serve`.
-//! They need the `chromium` and `chromium-driver` packages (`.ci/run` installs them) and fail,
-//! rather than skip, without them. Screenshots go to `$PHOTONBOX_SCREENSHOTS` if set
-//! (`PHOTONBOX_SCREENSHOTS=docs/screenshots cargo test --test browser` regenerates the
-//! committed ones), else under the target directory, so a test run leaves the checkout clean.
+//! End-to-end tests of the gallery (web/) in real browsers, against a real `photonbox serve`:
+//! every test runs twice, as `..._in_chromium` (Debian's headless Chromium through
+//! chromedriver) and `..._in_firefox` (Debian's headless Firefox ESR through geckodriver),
+//! driven over WebDriver with fantoccini and asserting the same things in both.
+//! They need the `chromium`, `chromium-driver` and `firefox-esr` packages and geckodriver
+//! (`cargo install geckodriver --locked`: Debian has none); `.ci/run` installs them. Without
+//! them the tests fail, rather than skip. `$CHROMEDRIVER`, `$CHROMIUM`, `$GECKODRIVER` and
+//! `$FIREFOX` override the programs found on PATH.
 //!
-//! Layout: `driver.rs` (chromedriver and Chromium sessions), `page.rs` (waiting, typing,
-//! screenshots, checks of the page), `one_user.rs` (submit, watch, compare, cancel, a phone's
-//! width), `users.rs` (who sees which job, signing out).
+//! Chromium's screenshots go to `$PHOTONBOX_SCREENSHOTS` if set
+//! (`PHOTONBOX_SCREENSHOTS=docs/screenshots cargo test --test browser` regenerates the
+//! committed ones), else under the target directory, so a test run leaves the checkout clean;
+//! Firefox's always go under the target directory, in `screenshots/firefox/`.
+//!
+//! Layout: `driver.rs` (the two browsers, their WebDriver servers and sessions), `page.rs`
+//! (waiting, typing, screenshots, checks of the page), `one_user.rs` (submit, watch, compare,
+//! cancel, a phone's width), `users.rs` (who sees which job, signing out).
 
 #[path = "../server/harness.rs"]
 #[allow(dead_code)] // the browser tests use the server half of the harness only

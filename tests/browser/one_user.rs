@@ -5,7 +5,7 @@ use fantoccini::Locator;
 use fantoccini::key::Key;
 use serde_json::json;
 
-use crate::driver::Driver;
+use crate::driver::{Browser, Driver};
 use crate::harness::Server;
 use crate::page::{
     accessibility_problems, assert_fits_width, by_id, fill_small, gallery_ids, goto_gallery, js,
@@ -13,10 +13,19 @@ use crate::page::{
 };
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn submit_watch_compare_in_the_browser() {
+async fn submit_watch_compare_in_chromium() {
+    submit_watch_compare(Browser::Chromium).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn submit_watch_compare_in_firefox() {
+    submit_watch_compare(Browser::Firefox).await;
+}
+
+async fn submit_watch_compare(browser: Browser) {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(dir.path(), &[]);
-    let driver = Driver::start();
+    let driver = Driver::start(browser);
     let c = driver.session().await;
 
     // Sign in with the printed URL: the token is kept, and dropped from the address bar.
@@ -159,7 +168,7 @@ async fn submit_watch_compare_in_the_browser() {
         json!("192px"),
         "2x zoom of the 96-pixel image"
     );
-    screenshot(&c, "job-mid-render.png").await;
+    screenshot(&c, browser, "job-mid-render.png").await;
     let p2 = wait_for(
         &c,
         "progress advancing",
@@ -217,7 +226,7 @@ async fn submit_watch_compare_in_the_browser() {
         "document.querySelector('#job-stats .charts').scrollIntoView({block: 'end'});",
     )
     .await;
-    screenshot(&c, "job-stats.png").await;
+    screenshot(&c, browser, "job-stats.png").await;
     assert_eq!(accessibility_problems(&c).await, json!([]));
 
     // A photon-map job of the same view, to compare with.
@@ -253,7 +262,7 @@ async fn submit_watch_compare_in_the_browser() {
     let text = text.as_str().unwrap();
     assert!(text.contains("cornell") && text.contains("photon") && text.contains("96x96"));
     assert_eq!(accessibility_problems(&c).await, json!([]));
-    screenshot(&c, "gallery.png").await;
+    screenshot(&c, browser, "gallery.png").await;
 
     // Compare the two from the job page; move the split by keyboard.
     js(&c, &format!("location.hash = '#/job/{ppm}';")).await;
@@ -291,7 +300,7 @@ async fn submit_watch_compare_in_the_browser() {
     .await;
     assert_eq!(clip, json!(["35", "inset(0px 65% 0px 0px)"]));
     assert_eq!(accessibility_problems(&c).await, json!([]));
-    screenshot(&c, "compare.png").await;
+    screenshot(&c, browser, "compare.png").await;
 
     // Cancel a long job from its page.
     goto_gallery(&c).await;
@@ -369,11 +378,16 @@ async fn submit_watch_compare_in_the_browser() {
         "document.getElementById('chart-error-pass').scrollIntoView({block: 'end'});",
     )
     .await;
-    screenshot(&c, "job-accuracy.png").await;
+    screenshot(&c, browser, "job-accuracy.png").await;
     assert_eq!(accessibility_problems(&c).await, json!([]));
 
     // A phone's width: nothing scrolls sideways.
     c.set_window_size(390, 844).await.unwrap();
+    assert_eq!(
+        js(&c, "return window.innerWidth;").await,
+        json!(390),
+        "the page is laid out at a phone's width"
+    );
     goto_gallery(&c).await;
     wait_for(
         &c,
@@ -383,7 +397,7 @@ async fn submit_watch_compare_in_the_browser() {
     )
     .await;
     assert_fits_width(&c, "gallery at 390px").await;
-    screenshot(&c, "gallery-phone.png").await;
+    screenshot(&c, browser, "gallery-phone.png").await;
     js(&c, &format!("location.hash = '#/job/{ppm}';")).await;
     wait_for(
         &c,

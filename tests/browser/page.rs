@@ -8,6 +8,8 @@ use fantoccini::key::Key;
 use fantoccini::{Client, Locator};
 use serde_json::{Value, json};
 
+use crate::driver::Browser;
+
 /// Run a script in the page and return its value.
 pub async fn js(c: &Client, script: &str) -> Value {
     c.execute(script, vec![])
@@ -56,21 +58,24 @@ pub async fn select(c: &Client, id: &str, value: &str) {
     by_id(c, id).await.select_by_value(value).await.unwrap();
 }
 
-/// Where screenshots go: `$PHOTONBOX_SCREENSHOTS` if set (relative to the crate's root;
-/// `docs/screenshots` regenerates the committed ones), else a folder under the target
-/// directory, so that `cargo test` leaves the checkout as it was.
-fn screenshot_dir() -> PathBuf {
-    match std::env::var_os("PHOTONBOX_SCREENSHOTS") {
-        Some(dir) => Path::new(env!("CARGO_MANIFEST_DIR")).join(dir),
-        None => Path::new(env!("CARGO_TARGET_TMPDIR")).join("screenshots"),
+/// Where screenshots go. Chromium's: `$PHOTONBOX_SCREENSHOTS` if set (relative to the crate's
+/// root; `docs/screenshots` regenerates the committed ones), else a folder under the target
+/// directory, so that `cargo test` leaves the checkout as it was. Firefox's: always under the
+/// target directory, in `firefox/`, so the committed screenshots stay Chromium's.
+fn screenshot_dir(browser: Browser) -> PathBuf {
+    let under_target = Path::new(env!("CARGO_TARGET_TMPDIR")).join("screenshots");
+    match (browser, std::env::var_os("PHOTONBOX_SCREENSHOTS")) {
+        (Browser::Chromium, Some(dir)) => Path::new(env!("CARGO_MANIFEST_DIR")).join(dir),
+        (Browser::Chromium, None) => under_target,
+        (Browser::Firefox, _) => under_target.join("firefox"),
     }
 }
 
-/// Save the window as `name` in the screenshot folder; fails unless a PNG of the window's
-/// size and some content was written there.
-pub async fn screenshot(c: &Client, name: &str) {
+/// Save `browser`'s window as `name` in its screenshot folder; fails unless a PNG of the
+/// window's viewport size and some content was written there.
+pub async fn screenshot(c: &Client, browser: Browser, name: &str) {
     let png = c.screenshot().await.unwrap();
-    let dir = screenshot_dir();
+    let dir = screenshot_dir(browser);
     std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("create {}: {e}", dir.display()));
     let path = dir.join(name);
     std::fs::write(&path, &png).unwrap_or_else(|e| panic!("write {}: {e}", path.display()));
@@ -90,11 +95,12 @@ pub async fn screenshot(c: &Client, name: &str) {
         written.len()
     );
     let img = image::load_from_memory(&written).unwrap();
-    assert!(
-        img.width() >= 300,
-        "{name}: {}x{}",
-        img.width(),
-        img.height()
+    let viewport = js(c, "return [window.innerWidth, window.innerHeight];").await;
+    assert_eq!(
+        json!([img.width(), img.height()]),
+        viewport,
+        "{}: the picture against the window's viewport",
+        path.display()
     );
 }
 

@@ -4,7 +4,7 @@
 use fantoccini::Client;
 use serde_json::json;
 
-use crate::driver::Driver;
+use crate::driver::{Browser, Driver};
 use crate::harness::Server;
 use crate::page::{by_id, fill_small, gallery_ids, goto_gallery, js, submit_form, wait_for};
 
@@ -39,13 +39,23 @@ async fn submit_tiny(c: &Client, public: bool) -> i64 {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn two_users_see_their_own_and_public_jobs_only() {
+async fn two_users_see_their_own_and_public_jobs_in_chromium() {
+    two_users_see_their_own_and_public_jobs(Browser::Chromium).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_users_see_their_own_and_public_jobs_in_firefox() {
+    two_users_see_their_own_and_public_jobs(Browser::Firefox).await;
+}
+
+async fn two_users_see_their_own_and_public_jobs(browser: Browser) {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(dir.path(), &[]);
     let (alice_token, bob_token) = (s.add_user("alice"), s.add_user("bob"));
-    let driver = Driver::start();
-    let alice = signed_in(&driver, &s, &alice_token, "alice").await;
-    let bob = signed_in(&driver, &s, &bob_token, "bob").await;
+    // One WebDriver server each: geckodriver serves one session at a time.
+    let (alice_driver, bob_driver) = (Driver::start(browser), Driver::start(browser));
+    let alice = signed_in(&alice_driver, &s, &alice_token, "alice").await;
+    let bob = signed_in(&bob_driver, &s, &bob_token, "bob").await;
 
     let alice_private = submit_tiny(&alice, false).await;
     let alice_public = submit_tiny(&alice, true).await;
