@@ -102,10 +102,7 @@ impl Accel {
     /// Whether anything blocks the ray before `ray.t_max` (shadow rays).
     pub fn occluded(&self, ray: &Ray) -> bool {
         let Some(bvh) = self.bvh.as_ref() else {
-            return self
-                .flat
-                .as_ref()
-                .is_some_and(|f| f.intersect(ray).is_some());
+            return self.flat.as_ref().is_some_and(|f| f.occluded(ray));
         };
         let bray = BvhRay::new(ray.o, ray.d, 0.0, ray.t_max);
         !bvh.ray_traverse_miss(bray, |_, id| {

@@ -159,6 +159,19 @@ impl Flat {
     /// win over spheres over others, and lower lanes over higher.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<(PrimId, ShapeHit)> {
+        self.search::<false>(ray)
+    }
+
+    /// Whether anything is hit in (0, ray.t_max): shadow rays stop at the first group of
+    /// four with a hit.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.search::<true>(ray).is_some()
+    }
+
+    /// The closest hit, or with ANY, the first found.
+    #[inline]
+    fn search<const ANY: bool>(&self, ray: &Ray) -> Option<(PrimId, ShapeHit)> {
         let mut best: Option<(PrimId, ShapeHit)> = None;
         let mut t_max = ray.t_max;
         let o = splat3(ray.o);
@@ -197,6 +210,9 @@ impl Flat {
                         uv: [s[lane], v[lane]],
                     },
                 ));
+                if ANY {
+                    return best;
+                }
             }
         }
         for sp in &self.spheres {
@@ -241,6 +257,9 @@ impl Flat {
                         uv: [0.0, 0.0],
                     },
                 ));
+                if ANY {
+                    return best;
+                }
             }
         }
         let mut probe = *ray;
@@ -249,6 +268,9 @@ impl Flat {
             if let Some(h) = s.intersect(&probe, *id) {
                 probe.t_max = h.t;
                 best = Some((*id, h));
+                if ANY {
+                    return best;
+                }
             }
         }
         best
@@ -333,6 +355,17 @@ mod tests {
                 }
             }
             let got = flat.intersect(&ray).map(|(id, h)| (id, h.t));
+            assert_eq!(flat.occluded(&ray), want.is_some(), "ray {i}: occlusion");
+            if i % 2 == 0 {
+                // Shadow rays end short of their target.
+                let mut short = ray;
+                short.t_max = want.map_or(1.0, |w| w.1 * 0.5);
+                let blocked = shapes
+                    .iter()
+                    .enumerate()
+                    .any(|(id, sh)| sh.intersect(&short, id as u32).is_some());
+                assert_eq!(flat.occluded(&short), blocked, "ray {i}: short occlusion");
+            }
             match (got, want) {
                 (Some((gi, gt)), Some((wi, wt))) => {
                     assert!(

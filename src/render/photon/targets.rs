@@ -30,6 +30,9 @@ pub struct TargetedDirection {
 /// Relative margin on the bounding spheres against f32 rounding at their rims.
 const MARGIN: f64 = 1e-4;
 
+/// Relative slack on the squared radii when culling photons that cannot meet a target.
+const CULL_SLACK: f32 = 1e-3;
+
 impl CausticTargets {
     /// Bounding spheres of the objects whose material is specular, `origin` being the
     /// engine frame's origin in world coordinates.
@@ -114,6 +117,25 @@ impl CausticTargets {
         sum / self.spheres.len() as f32
     }
 
+    /// Whether a ray from `o` along unit `dir` may meet a specular object: false only if it
+    /// misses every bounding sphere. A blindly emitted caustic photon that cannot meet one
+    /// first ends, unstored, at its first (non-specular) hit, so it is left untraced: the
+    /// caustic map is bit for bit what tracing it would give. (Blind emission is the seed's
+    /// workload; at n = 100k on scene (1) about 95% of its photons are such.)
+    #[inline]
+    pub fn may_reach(&self, o: Vec3A, dir: Vec3A) -> bool {
+        self.spheres.iter().any(|&(c, r)| {
+            let to_c = c - o;
+            // Extra slack for the rounding of these few operations.
+            let r2 = r * r * (1.0 + CULL_SLACK);
+            if to_c.length_squared() <= r2 {
+                return true;
+            }
+            let along = to_c.dot(dir);
+            along > 0.0 && (to_c - dir * along).length_squared() <= r2
+        })
+    }
+
     /// A direction from `p` toward one target picked by `u_pick` (uniformly), with its pdf.
     pub fn sample(&self, p: Vec3A, u_pick: f32, u: Vec2) -> TargetedDirection {
         let n = self.spheres.len();
@@ -182,6 +204,68 @@ mod tests {
             .sum();
         let got = sum / n as f64;
         assert!((got / want - 1.0).abs() < 0.01, "{got} vs {want}");
+    }
+
+    /// No ray that meets a specular object is culled, whatever its origin (outside, near the
+    /// rim, inside the bound), and most rays that miss are.
+    #[test]
+    fn culling_keeps_every_ray_that_meets_a_target() {
+        use crate::render::geometry::{Ray, Shape};
+        use crate::render::scene::SceneDesc;
+        let json = serde_json::json!({
+            "camera": {"position": [0, 1, 4], "look_at": [0, 1, 0], "up": [0, 1, 0], "fov": 40,
+                       "width": 8, "height": 8},
+            "materials": {"glass": {"type": "dielectric", "ior": 1.5},
+                          "mirror": {"type": "mirror", "reflectance": [1, 1, 1]}},
+            "objects": [
+                {"type": "sphere", "material": "glass", "center": [0.3, 0.4, -0.2], "radius": 0.3},
+                {"type": "quad", "material": "mirror", "corner": [-1, 0, -1],
+                 "edge_u": [0.5, 0, 0], "edge_v": [0, 0.8, 0.1]}
+            ],
+            "lights": []
+        });
+        let desc = SceneDesc::parse(&json.to_string(), None).expect("a valid scene");
+        let t = CausticTargets::from_desc(&desc, DVec3::ZERO);
+        let shapes = [
+            Shape::Sphere {
+                center: Vec3A::new(0.3, 0.4, -0.2),
+                radius: 0.3,
+            },
+            Shape::quad(
+                Vec3A::new(-1.0, 0.0, -1.0),
+                Vec3A::new(0.5, 0.0, 0.0),
+                Vec3A::new(0.0, 0.8, 0.1),
+            ),
+        ];
+        let mut s = Sampler::new(3, Stream::Camera, 0);
+        let (mut hits, mut culled_misses, mut misses) = (0, 0, 0);
+        for i in 0..200_000 {
+            // Origins in and around the targets, some right on the sphere's rim.
+            let o = if i % 4 == 0 {
+                Vec3A::new(0.3, 0.4, -0.2) + uniform_sphere(s.next_2d()) * 0.3
+            } else {
+                Vec3A::new(s.next_f32(), s.next_f32(), s.next_f32()) * 3.0 - Vec3A::splat(1.5)
+            };
+            let d = uniform_sphere(s.next_2d());
+            let ray = Ray::new(o, d);
+            let hit = shapes.iter().any(|sh| sh.intersect(&ray, 7).is_some());
+            let reach = t.may_reach(o, d);
+            if hit {
+                hits += 1;
+                assert!(
+                    reach,
+                    "ray {i} from {o} along {d} meets a target but was culled"
+                );
+            } else {
+                misses += 1;
+                culled_misses += (!reach) as u32;
+            }
+        }
+        assert!(hits > 10_000, "{hits}");
+        assert!(
+            culled_misses as f64 > 0.5 * misses as f64,
+            "{culled_misses} of {misses}"
+        );
     }
 
     #[test]

@@ -243,7 +243,11 @@ fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Pho
             flux: light.power() * weight,
         }
     } else {
-        light.sample_emission(u_pos, u_dir)
+        let em = light.sample_emission(u_pos, u_dir);
+        if target == Target::Caustic && !scene.caustic_targets.may_reach(em.ray.o, em.ray.d) {
+            return; // it would end unstored at its first hit (see `may_reach`)
+        }
+        em
     };
     // Flux relative to the map's unit, total / emitted: luminance 1 when it leaves the light
     // (on average, for aimed caustic photons).
@@ -307,7 +311,7 @@ fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Pho
     }
 }
 
-/// Trace the photons of both maps, then balance their kd-trees.
+/// Trace the photons of both maps (without building their trees).
 pub fn trace_photons(
     scene: &Scene,
     params: &PhotonParams,
@@ -317,51 +321,84 @@ pub fn trace_photons(
         Phase::PhotonTrace,
         params.global_photons + params.caustic_photons,
     );
-    let global = trace(
-        scene,
-        params.global_photons,
-        Target::Global(params.store),
-        params,
-        control,
-        &tracker,
-    )?;
-    let caustic = trace(
-        scene,
-        params.caustic_photons,
-        Target::Caustic,
-        params,
-        control,
-        &tracker,
-    )?;
+    let global = trace_map(scene, MapKind::Global, params, control, &tracker)?;
+    let caustic = trace_map(scene, MapKind::Caustic, params, control, &tracker)?;
     tracker.finish();
     Ok((global, caustic))
 }
 
+#[derive(Clone, Copy)]
+enum MapKind {
+    Global,
+    Caustic,
+}
+
+fn trace_map(
+    scene: &Scene,
+    kind: MapKind,
+    params: &PhotonParams,
+    control: &Control,
+    tracker: &crate::render::control::Tracker,
+) -> Result<TraceOutput, Cancelled> {
+    match kind {
+        MapKind::Global => trace(
+            scene,
+            params.global_photons,
+            Target::Global(params.store),
+            params,
+            control,
+            tracker,
+        ),
+        MapKind::Caustic => trace(
+            scene,
+            params.caustic_photons,
+            Target::Caustic,
+            params,
+            control,
+            tracker,
+        ),
+    }
+}
+
 /// Trace and build the photon maps for `params` (a map with 0 photons is not built).
+///
+/// The caustic photons are traced while the global map's tree is balanced: the top of a
+/// balance runs on one thread, and the other one has the caustic paths to trace meanwhile.
+/// `trace_seconds` runs until the last photon is traced, `build_seconds` from then on.
 pub fn build_photon_maps(
     scene: &Scene,
     params: &PhotonParams,
     control: &Control,
 ) -> Result<PhotonMaps, Cancelled> {
     let t0 = Instant::now();
-    let (global, caustic) = trace_photons(scene, params, control)?;
-    let trace_seconds = t0.elapsed().as_secs_f64();
-    control.check()?;
-    let t1 = Instant::now();
-    let tracker = control.tracker(Phase::BuildMaps, 2);
+    let tracker = control.tracker(
+        Phase::PhotonTrace,
+        params.global_photons + params.caustic_photons,
+    );
     let make = |t: TraceOutput| {
         (t.emitted > 0)
             .then(|| PhotonMap::build(t.photons, t.emitted, t.unit, control))
             .transpose()
     };
-    let (global, caustic) = rayon::join(|| make(global), || make(caustic));
-    let (global, caustic) = (global?, caustic?);
-    tracker.finish();
+    let global = trace_map(scene, MapKind::Global, params, control, &tracker)?;
+    control.check()?;
+    let (global, caustic) = rayon::join(
+        || make(global),
+        || {
+            let caustic = trace_map(scene, MapKind::Caustic, params, control, &tracker)?;
+            tracker.finish();
+            let traced = t0.elapsed().as_secs_f64();
+            Ok::<_, Cancelled>((make(caustic)?, traced))
+        },
+    );
+    let (global, (caustic, trace_seconds)) = (global?, caustic?);
+    let build = control.tracker(Phase::BuildMaps, 2);
+    build.finish();
     Ok(PhotonMaps {
         global,
         caustic,
         params: params.clone(),
         trace_seconds,
-        build_seconds: t1.elapsed().as_secs_f64(),
+        build_seconds: t0.elapsed().as_secs_f64() - trace_seconds,
     })
 }
