@@ -19,7 +19,7 @@ pub use estimate::{
 pub use kdtree::{KdItem, KdTree, KnnScratch};
 pub use occupancy::OccupancyGrid;
 pub use targets::{CausticTargets, TargetedDirection};
-pub use trace::{PhotonParams, PhotonStore, TraceOutput, build_photon_maps, trace_photons};
+pub use trace::{PhotonParams, PhotonStore, TraceOutput, build_photon_maps};
 
 use glam::Vec3A;
 

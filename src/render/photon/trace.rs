@@ -311,55 +311,6 @@ fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Pho
     }
 }
 
-/// Trace the photons of both maps (without building their trees).
-pub fn trace_photons(
-    scene: &Scene,
-    params: &PhotonParams,
-    control: &Control,
-) -> Result<(TraceOutput, TraceOutput), Cancelled> {
-    let tracker = control.tracker(
-        Phase::PhotonTrace,
-        params.global_photons + params.caustic_photons,
-    );
-    let global = trace_map(scene, MapKind::Global, params, control, &tracker)?;
-    let caustic = trace_map(scene, MapKind::Caustic, params, control, &tracker)?;
-    tracker.finish();
-    Ok((global, caustic))
-}
-
-#[derive(Clone, Copy)]
-enum MapKind {
-    Global,
-    Caustic,
-}
-
-fn trace_map(
-    scene: &Scene,
-    kind: MapKind,
-    params: &PhotonParams,
-    control: &Control,
-    tracker: &crate::render::control::Tracker,
-) -> Result<TraceOutput, Cancelled> {
-    match kind {
-        MapKind::Global => trace(
-            scene,
-            params.global_photons,
-            Target::Global(params.store),
-            params,
-            control,
-            tracker,
-        ),
-        MapKind::Caustic => trace(
-            scene,
-            params.caustic_photons,
-            Target::Caustic,
-            params,
-            control,
-            tracker,
-        ),
-    }
-}
-
 /// Trace and build the photon maps for `params` (a map with 0 photons is not built).
 ///
 /// The caustic photons are traced while the global map's tree is balanced: the top of a
@@ -380,12 +331,20 @@ pub fn build_photon_maps(
             .then(|| PhotonMap::build(t.photons, t.emitted, t.unit, control))
             .transpose()
     };
-    let global = trace_map(scene, MapKind::Global, params, control, &tracker)?;
+    let (global, caustic) = (params.global_photons, params.caustic_photons);
+    let global = trace(
+        scene,
+        global,
+        Target::Global(params.store),
+        params,
+        control,
+        &tracker,
+    )?;
     control.check()?;
     let (global, caustic) = rayon::join(
         || make(global),
         || {
-            let caustic = trace_map(scene, MapKind::Caustic, params, control, &tracker)?;
+            let caustic = trace(scene, caustic, Target::Caustic, params, control, &tracker)?;
             tracker.finish();
             let traced = t0.elapsed().as_secs_f64();
             Ok::<_, Cancelled>((make(caustic)?, traced))
