@@ -67,29 +67,10 @@ pub fn uniform_sphere(u: Vec2) -> Vec3A {
     Vec3A::new(r * cos_phi, r * sin_phi, z)
 }
 
-/// Shirley-Chiu concentric map from the square to the unit disk (area preserving).
-#[inline]
-pub fn concentric_disk(u: Vec2) -> Vec2 {
-    let o = 2.0 * u - Vec2::ONE;
-    if o.x == 0.0 && o.y == 0.0 {
-        return Vec2::ZERO;
-    }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
-    } else {
-        (
-            o.y,
-            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
-        )
-    };
-    let (sin_t, cos_t) = sin_cos(theta);
-    r * Vec2::new(cos_t, sin_t)
-}
-
 /// Cosine-weighted direction in the local hemisphere around +z (Malley's method);
 /// pdf cos(theta)/pi. The disk point comes from the polar map (r = sqrt(u.x), phi = 2 pi
-/// u.y), not the concentric one: it has no branch and no division, and for independent
-/// samples (the only kind this renderer draws) the two are equivalent. Photon tracing at
+/// u.y), not Shirley and Chiu's concentric one: it has no branch and no division, and for
+/// independent samples (the only kind this renderer draws) the two are equivalent. Photon tracing at
 /// 100k + 100k photons on scene (1): 51 -> 43 ms.
 #[inline]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3A {

@@ -12,15 +12,7 @@ use crate::page::{
     screenshot, select, submit_form, type_into, wait_for,
 };
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn submit_watch_compare_in_chromium() {
-    submit_watch_compare(Browser::Chromium).await;
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn submit_watch_compare_in_firefox() {
-    submit_watch_compare(Browser::Firefox).await;
-}
+in_each_browser!(submit_watch_compare);
 
 async fn submit_watch_compare(browser: Browser) {
     let dir = tempfile::tempdir().unwrap();

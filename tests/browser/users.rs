@@ -38,15 +38,7 @@ async fn submit_tiny(c: &Client, public: bool) -> i64 {
     id
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn two_users_see_their_own_and_public_jobs_in_chromium() {
-    two_users_see_their_own_and_public_jobs(Browser::Chromium).await;
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn two_users_see_their_own_and_public_jobs_in_firefox() {
-    two_users_see_their_own_and_public_jobs(Browser::Firefox).await;
-}
+in_each_browser!(two_users_see_their_own_and_public_jobs);
 
 async fn two_users_see_their_own_and_public_jobs(browser: Browser) {
     let dir = tempfile::tempdir().unwrap();

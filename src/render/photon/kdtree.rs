@@ -107,10 +107,18 @@ impl<T: KdItem> KdTree<T> {
     ) -> Option<KdTree<T>> {
         let mut lo = Vec3A::splat(f32::INFINITY);
         let mut hi = Vec3A::splat(f32::NEG_INFINITY);
-        for it in &items {
-            lo = lo.min(it.position());
-            hi = hi.max(it.position());
-        }
+        let mut keys: Vec<Key> = items
+            .iter()
+            .enumerate()
+            .map(|(i, it)| {
+                let p = it.position();
+                (lo, hi) = (lo.min(p), hi.max(p));
+                Key {
+                    p: p.to_array(),
+                    index: i as u32,
+                }
+            })
+            .collect();
         let e = (hi - lo).max(Vec3A::ZERO);
         let area = 2.0 * (e.x * e.y + e.y * e.z + e.z * e.x);
         let density_hint = if area > 0.0 && area.is_finite() {
@@ -118,14 +126,6 @@ impl<T: KdItem> KdTree<T> {
         } else {
             f32::INFINITY
         };
-        let mut keys: Vec<Key> = items
-            .iter()
-            .enumerate()
-            .map(|(i, it)| Key {
-                p: it.position().to_array(),
-                index: i as u32,
-            })
-            .collect();
         let mut nodes = Vec::new();
         balance(&mut keys, 0, &mut nodes, cancelled);
         if cancelled() {
@@ -230,27 +230,14 @@ impl<T: KdItem> KdTree<T> {
     ) -> f32 {
         // While fewer than k are found, anything strictly within the bound enters.
         let mut bound = r2_max;
-        let mut stack = Stack::<(u32, u32, u32, f32)>::new();
+        let mut stack = Stack::new();
         stack.push((0, 0, self.items.len() as u32, 0.0));
-        while let Some((mut node, mut lo, mut hi, plane_d2)) = stack.pop() {
+        while let Some((node, lo, hi, plane_d2)) = stack.pop() {
             // `>`: an item as near as the k-th with a lower index may lie across the plane.
             if plane_d2 > bound {
                 continue;
             }
-            while (hi - lo) as usize > LEAF {
-                let mid = halves(lo as usize, hi as usize) as u32;
-                let s = self.splits[node as usize];
-                let d = q[s.axis as usize] - s.value;
-                let (near, far) = if d < 0.0 {
-                    ((2 * node + 1, lo, mid), (2 * node + 2, mid, hi))
-                } else {
-                    ((2 * node + 2, mid, hi), (2 * node + 1, lo, mid))
-                };
-                if d * d <= bound {
-                    stack.push((far.0, far.1, far.2, d * d));
-                }
-                (node, lo, hi) = near;
-            }
+            let (lo, hi) = self.descend(q, (node, lo, hi), bound, &mut stack);
             for i in lo..hi {
                 let item = &self.items[i as usize];
                 let d2 = (item.position() - q).length_squared();
@@ -282,23 +269,14 @@ impl<T: KdItem> KdTree<T> {
         if self.items.is_empty() {
             return;
         }
-        let mut stack = Stack::<(u32, u32, u32)>::new();
-        stack.push((0, 0, self.items.len() as u32));
-        while let Some((mut node, mut lo, mut hi)) = stack.pop() {
-            while (hi - lo) as usize > LEAF {
-                let mid = halves(lo as usize, hi as usize) as u32;
-                let s = self.splits[node as usize];
-                let d = q[s.axis as usize] - s.value;
-                let (near, far) = if d < 0.0 {
-                    ((2 * node + 1, lo, mid), (2 * node + 2, mid, hi))
-                } else {
-                    ((2 * node + 2, mid, hi), (2 * node + 1, lo, mid))
-                };
-                if d * d < r2 {
-                    stack.push(far);
-                }
-                (node, lo, hi) = near;
+        let mut stack = Stack::new();
+        stack.push((0, 0, self.items.len() as u32, 0.0));
+        while let Some((node, lo, hi, plane_d2)) = stack.pop() {
+            // Items across a plane at exactly sqrt(r2) are not strictly within.
+            if plane_d2 >= r2 {
+                continue;
             }
+            let (lo, hi) = self.descend(q, (node, lo, hi), r2, &mut stack);
             for i in lo..hi {
                 let item = &self.items[i as usize];
                 let d2 = (item.position() - q).length_squared();
@@ -307,6 +285,34 @@ impl<T: KdItem> KdTree<T> {
                 }
             }
         }
+    }
+
+    /// From the subtree `(node, lo, hi)` down to the leaf on `q`'s side; every far child
+    /// whose plane lies within sqrt(`bound`) waits on `stack` with its squared plane
+    /// distance. Returns the leaf's item range. (Every search here starts this way.)
+    #[inline]
+    fn descend(
+        &self,
+        q: Vec3A,
+        (mut node, mut lo, mut hi): (u32, u32, u32),
+        bound: f32,
+        stack: &mut Stack<(u32, u32, u32, f32)>,
+    ) -> (u32, u32) {
+        while (hi - lo) as usize > LEAF {
+            let mid = halves(lo as usize, hi as usize) as u32;
+            let s = self.splits[node as usize];
+            let d = q[s.axis as usize] - s.value;
+            let (near, far) = if d < 0.0 {
+                ((2 * node + 1, lo, mid), (2 * node + 2, mid, hi))
+            } else {
+                ((2 * node + 2, mid, hi), (2 * node + 1, lo, mid))
+            };
+            if d * d <= bound {
+                stack.push((far.0, far.1, far.2, d * d));
+            }
+            (node, lo, hi) = near;
+        }
+        (lo, hi)
     }
 
     /// The nearest item passing `filter` within sqrt(r2_max), as (index, squared distance);
@@ -334,27 +340,14 @@ impl<T: KdItem> KdTree<T> {
             return best;
         }
         // Far children wait on the stack with the squared distance to their plane.
-        let mut stack = Stack::<(u32, u32, u32, f32)>::new();
+        let mut stack = Stack::new();
         stack.push((0, 0, self.items.len() as u32, 0.0));
-        while let Some((mut node, mut lo, mut hi, plane_d2)) = stack.pop() {
+        while let Some((node, lo, hi, plane_d2)) = stack.pop() {
             // `>`: an item exactly as near with a lower index may lie across the plane.
             if plane_d2 > r2 {
                 continue;
             }
-            while (hi - lo) as usize > LEAF {
-                let mid = halves(lo as usize, hi as usize) as u32;
-                let s = self.splits[node as usize];
-                let d = q[s.axis as usize] - s.value;
-                let (near, far) = if d < 0.0 {
-                    ((2 * node + 1, lo, mid), (2 * node + 2, mid, hi))
-                } else {
-                    ((2 * node + 2, mid, hi), (2 * node + 1, lo, mid))
-                };
-                if d * d <= r2 {
-                    stack.push((far.0, far.1, far.2, d * d));
-                }
-                (node, lo, hi) = near;
-            }
+            let (lo, hi) = self.descend(q, (node, lo, hi), r2, &mut stack);
             for i in lo..hi {
                 let item = &self.items[i as usize];
                 let d2 = (item.position() - q).length_squared();

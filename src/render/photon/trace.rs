@@ -331,28 +331,37 @@ pub fn build_photon_maps(
             .then(|| PhotonMap::build(t.photons, t.emitted, t.unit, control))
             .transpose()
     };
-    let (global, caustic) = (params.global_photons, params.caustic_photons);
+    let store = Target::Global(params.store);
     let global = trace(
         scene,
-        global,
-        Target::Global(params.store),
+        params.global_photons,
+        store,
         params,
         control,
         &tracker,
     )?;
-    control.check()?;
     let (global, caustic) = rayon::join(
         || make(global),
         || {
-            let caustic = trace(scene, caustic, Target::Caustic, params, control, &tracker)?;
+            let caustic = trace(
+                scene,
+                params.caustic_photons,
+                Target::Caustic,
+                params,
+                control,
+                &tracker,
+            )?;
             tracker.finish();
             let traced = t0.elapsed().as_secs_f64();
-            Ok::<_, Cancelled>((make(caustic)?, traced))
+            // From here on only tree building remains.
+            let building = control.tracker(Phase::BuildMaps, 2);
+            let map = make(caustic)?;
+            building.advance(1);
+            Ok::<_, Cancelled>((map, traced, building))
         },
     );
-    let (global, (caustic, trace_seconds)) = (global?, caustic?);
-    let build = control.tracker(Phase::BuildMaps, 2);
-    build.finish();
+    let (global, (caustic, trace_seconds, building)) = (global?, caustic?);
+    building.finish();
     Ok(PhotonMaps {
         global,
         caustic,
