@@ -1,15 +1,14 @@
 //! One user through the whole gallery: sign in, the estimate, field errors, a progressive
 //! job watched live, a photon job, the gallery, a comparison, a cancel, a phone's width.
 
-use fantoccini::Locator;
 use fantoccini::key::Key;
 use serde_json::json;
 
 use crate::driver::{Browser, Driver};
 use crate::harness::Server;
 use crate::page::{
-    accessibility_problems, assert_fits_width, by_id, fill_small, gallery_ids, goto_gallery, js,
-    screenshot, select, submit_form, type_into, wait_for,
+    accessibility_problems, assert_fits_width, by_id, click_css, fill_small, gallery_ids,
+    goto_gallery, js, screenshot, select, submit_form, type_into, wait_for,
 };
 
 in_each_browser!(submit_watch_compare);
@@ -52,24 +51,14 @@ async fn submit_watch_compare(browser: Browser) {
         .await
         .unwrap();
     let estimate = "Number(document.getElementById('estimate').dataset.seconds)";
-    c.find(Locator::Css("[data-preset=draft]"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click_css(&c, "[data-preset=draft]").await;
     let draft = wait_for(&c, "a draft estimate", estimate, 5).await;
     assert_eq!(
         js(&c, "return document.getElementById('width').value;").await,
         json!("192"),
         "draft: half the scene's 384 pixels"
     );
-    c.find(Locator::Css("[data-preset=final]"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click_css(&c, "[data-preset=final]").await;
     let fin = wait_for(&c, "a final estimate", estimate, 5).await;
     assert!(
         fin.as_f64().unwrap() > 10.0 * draft.as_f64().unwrap(),
@@ -97,12 +86,7 @@ async fn submit_watch_compare(browser: Browser) {
         json!("true")
     );
     // A pasted scene's error names its path under `scene`.
-    c.find(Locator::Css("input[name=scene-source][value=custom]"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click_css(&c, "input[name=scene-source][value=custom]").await;
     type_into(&c, "scene-json", r#"{"camera": 3}"#).await;
     type_into(&c, "k", "10").await;
     by_id(&c, "submit").await.click().await.unwrap();
@@ -119,12 +103,7 @@ async fn submit_watch_compare(browser: Browser) {
         json!(""),
         "old errors are cleared"
     );
-    c.find(Locator::Css("input[name=scene-source][value=builtin]"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
+    click_css(&c, "input[name=scene-source][value=builtin]").await;
 
     // A progressive job: the bar advances, previews appear and update, then it is done.
     fill_small(&c, "ppm", 96, true).await;

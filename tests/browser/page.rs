@@ -47,6 +47,16 @@ pub async fn by_id(c: &Client, id: &str) -> Element {
         .unwrap_or_else(|e| panic!("no #{id}: {e}"))
 }
 
+/// Click the element `css` selects.
+pub async fn click_css(c: &Client, css: &str) {
+    c.find(Locator::Css(css))
+        .await
+        .unwrap_or_else(|e| panic!("no {css}: {e}"))
+        .click()
+        .await
+        .unwrap();
+}
+
 /// Type `value` into the input `id` (replacing what was there), as a user would.
 pub async fn type_into(c: &Client, id: &str, value: &str) {
     let el = by_id(c, id).await;
