@@ -1,0 +1,149 @@
+//! Balancing a kd-tree: median splits into leaf buckets, the splits in heap order.
+
+use glam::Vec3A;
+
+use super::{KdItem, KdTree, LEAF, Split, halves};
+
+/// Nodes of at least this many items poll for cancellation (a few ms of work each).
+const CANCEL_CHECK_MIN: usize = 64 * 1024;
+
+/// Below this many items, subtrees are built on the calling thread.
+const PARALLEL_BUILD_MIN: usize = 16 * 1024;
+
+impl<T: KdItem> KdTree<T> {
+    /// Balance `items` into a tree. Deterministic: the result depends only on the input
+    /// order, not on the thread count.
+    pub fn build(items: Vec<T>) -> KdTree<T> {
+        match Self::build_cancellable(items, &|| false) {
+            Some(t) => t,
+            None => unreachable!("never cancelled"),
+        }
+    }
+
+    /// [`KdTree::build`] that polls `cancelled` at every large node and gives up (None) once
+    /// it says so: balancing tens of millions of photons takes seconds.
+    pub fn build_cancellable(
+        items: Vec<T>,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Option<KdTree<T>> {
+        let mut lo = Vec3A::splat(f32::INFINITY);
+        let mut hi = Vec3A::splat(f32::NEG_INFINITY);
+        let mut keys: Vec<Key> = items
+            .iter()
+            .enumerate()
+            .map(|(i, it)| {
+                let p = it.position();
+                (lo, hi) = (lo.min(p), hi.max(p));
+                Key {
+                    p: p.to_array(),
+                    index: i as u32,
+                }
+            })
+            .collect();
+        let e = (hi - lo).max(Vec3A::ZERO);
+        let area = 2.0 * (e.x * e.y + e.y * e.z + e.z * e.x);
+        let density_hint = if area > 0.0 && area.is_finite() {
+            items.len() as f32 / area
+        } else {
+            f32::INFINITY
+        };
+        let mut nodes = Vec::new();
+        balance(&mut keys, 0, &mut nodes, cancelled);
+        if cancelled() {
+            return None;
+        }
+        let items: Vec<T> = keys.iter().map(|k| items[k.index as usize]).collect();
+        let len = nodes.iter().map(|n| n.0 + 1).max().unwrap_or(0);
+        let mut splits = vec![Split::default(); len];
+        for (i, s) in nodes {
+            splits[i] = s;
+        }
+        Some(KdTree {
+            items,
+            splits,
+            density_hint,
+        })
+    }
+}
+
+/// What balancing moves around: an item's position and index, 16 bytes (a photon is 28),
+/// so that the selections move fewer bytes; the items are put in the final order once.
+#[derive(Clone, Copy)]
+struct Key {
+    p: [f32; 3],
+    index: u32,
+}
+
+impl KdItem for Key {
+    #[inline]
+    fn position(&self) -> Vec3A {
+        Vec3A::from_array(self.p)
+    }
+
+    #[inline]
+    fn coord(&self, axis: usize) -> f32 {
+        self.p[axis]
+    }
+}
+
+/// Median split on the axis of largest extent of the node's items, recursively; large
+/// halves in parallel. (Choosing the axis from the node's cell instead, which spares the
+/// pass over the items, was measured: builds 4% faster, queries 25% slower.) Collects (node
+/// index, split) pairs, scattered into the heap-ordered array afterwards.
+///
+/// Photons lie on planes: where more than half of a node's items share the median's
+/// coordinate (a floor meeting a wall, split across the floor's height), the split would
+/// leave some of them on each side, and every query on that plane would search both
+/// halves. Such a split is replaced by one on the next longest axis where the median is
+/// clear of ties (else the last one tried stays; k = 1 render on scene 1: precompute 18.4 -> 15.9 ms, camera
+/// pass 98.7 -> 95.8 ms; build about 1 ms slower).
+fn balance(
+    items: &mut [Key],
+    node: usize,
+    out: &mut Vec<(usize, Split)>,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) {
+    if items.len() <= LEAF || (items.len() >= CANCEL_CHECK_MIN && cancelled()) {
+        return;
+    }
+    let mut lo = Vec3A::splat(f32::INFINITY);
+    let mut hi = Vec3A::splat(f32::NEG_INFINITY);
+    for it in items.iter() {
+        let p = it.position();
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    let ext = hi - lo;
+    let mut axes = [0usize, 1, 2];
+    axes.sort_by(|&a, &b| ext[b].total_cmp(&ext[a]));
+    let mid = halves(0, items.len());
+    let mut axis = axes[0];
+    for (tried, &a) in axes.iter().enumerate() {
+        axis = a;
+        items.select_nth_unstable_by(mid, |x, y| x.coord(a).total_cmp(&y.coord(a)));
+        let value = items[mid].coord(a);
+        let degenerate = items[..mid].iter().any(|it| it.coord(a) == value);
+        if !degenerate || tried == 2 || ext[axes[tried + 1]] <= 0.0 {
+            break;
+        }
+    }
+    out.push((
+        node,
+        Split {
+            value: items[mid].coord(axis),
+            axis: axis as u32,
+        },
+    ));
+    let (left, right) = items.split_at_mut(mid);
+    if left.len() >= PARALLEL_BUILD_MIN {
+        let mut right_out = Vec::new();
+        rayon::join(
+            || balance(left, 2 * node + 1, out, cancelled),
+            || balance(right, 2 * node + 2, &mut right_out, cancelled),
+        );
+        out.extend(right_out);
+    } else {
+        balance(left, 2 * node + 1, out, cancelled);
+        balance(right, 2 * node + 2, out, cancelled);
+    }
+}
