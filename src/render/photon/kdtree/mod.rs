@@ -3,14 +3,17 @@
 //! most LEAF items, and the splitting planes live in a separate compact array in heap order
 //! (node i has children 2i+1 and 2i+2), so the top of the tree shares a few cache lines
 //! and a query touches item memory only in the leaves it scans. The items carry nothing for
-//! the tree: a photon stays 28 bytes, plus 8 bytes of split per LEAF photons.
+//! the tree: a photon stays 28 bytes, plus 8 bytes of split per LEAF photons. Balancing is
+//! in `build.rs`.
 //!
-//! k-nearest-neighbour queries gather every item within a guessed radius and select the k
-//! nearest with `select_nth_unstable` (ties broken by index, so the answer never depends on
-//! the guess); the guess is the previous query's radius on the same thread, which for the
-//! spatially coherent queries of a render (pixels of a tile, photons in tree order) is
-//! nearly right. This "radius-bounded gather" beats a heap-based search by several times
-//! at k = 50-100.
+//! Searches: for k above SMALL_K, k-nearest-neighbour queries gather every item within a
+//! guessed radius and select the k nearest with `select_nth_unstable` (ties broken by
+//! index, so the answer never depends on the guess); the guess is the previous query's
+//! radius on the same thread, which for the spatially coherent queries of a render (pixels
+//! of a tile, photons in tree order) is nearly right. This "radius-bounded gather" beats a
+//! heap-based search by several times at k = 50-100. Small k, the nearest item and the
+//! range search walk the tree by branch and bound; every search scans its leaves four
+//! items at a time (`lanes.rs`).
 //!
 //! Chosen over kiddo after measuring both on photon maps (benches/kdtree.rs, recorded in
 //! docs/performance.md).
@@ -212,12 +215,16 @@ impl<T: KdItem> KdTree<T> {
     }
 
     /// Branch and bound (Friedman, Bentley and Finkel 1977), the walk every search here
-    /// makes: leaves are visited nearest first, and `scan(item, d2, index, bound)` sees each
-    /// of their items within the bound and may lower `bound`; subtrees across a plane
-    /// farther than sqrt(bound) are skipped (`>`: at exactly the bound, an item as near as
-    /// the k-th but with a lower index may lie across the plane). Returns the final bound.
-    /// Iterative, with the far children on a small stack: a recursive version measured 1.5x
-    /// slower.
+    /// makes: leaves are visited nearest first, and `scan(item, d2, index, bound)` sees
+    /// their items and may lower `bound`; subtrees across a plane farther than sqrt(bound)
+    /// are skipped (`>`: at exactly the bound, an item as near as the k-th but with a lower
+    /// index may lie across the plane). Returns the final bound. Iterative, with the far
+    /// children on a small stack: a recursive version measured 1.5x slower.
+    ///
+    /// The contract with `scan`: it never raises `bound`, and it accepts no item farther
+    /// than the bound as it stands (nor a NaN distance). The leaf scan relies on both: it
+    /// passes only items within the bound as it was at the start of each group of four, so
+    /// an item may still arrive after the bound has dropped below it, and must be refused.
     #[inline]
     fn branch_and_bound(
         &self,
@@ -237,11 +244,12 @@ impl<T: KdItem> KdTree<T> {
         bound
     }
 
-    /// `scan` on the items of `lo..hi` within `bound` of `q`. Most items of a leaf lie beyond
-    /// the bound: their distances are computed four at a time, and only the items within it
-    /// go to `scan` (which accepts none farther). Against one distance and one call per
-    /// item: camera pass 1-3% faster at every k on scene 1 (perf-tables, alternating runs;
-    /// k = 1 render 112.9 / 112.5 -> 110.8 / 106.9 ms), images bit-identical.
+    /// `scan` on the items of `lo..hi` within `bound` of `q` (see `branch_and_bound` for the
+    /// contract). Most items of a leaf lie beyond the bound: their distances are computed
+    /// four at a time, and only the items within it go to `scan`. Against one distance and
+    /// one call per item, on scene 1 (perf-tables, two alternating rounds): render at k = 1
+    /// 112.9 / 112.5 -> 110.8 / 106.9 ms, at k = 100 220.2 / 218.3 -> 215.5 / 213.0 ms;
+    /// images bit-identical.
     #[inline(always)]
     fn scan_leaf(
         &self,
@@ -252,9 +260,9 @@ impl<T: KdItem> KdTree<T> {
         scan: &mut impl FnMut(&T, f32, u32, &mut f32),
     ) {
         let leaf = &self.items[lo as usize..hi as usize];
-        let mut chunks = leaf.chunks_exact(4);
+        let (fours, rest) = leaf.as_chunks::<4>();
         let mut at = lo;
-        for four in &mut chunks {
+        for four in fours {
             let d2 = distances4(q, four);
             let mask = within4(d2, *bound);
             if mask != 0 {
@@ -266,7 +274,7 @@ impl<T: KdItem> KdTree<T> {
             }
             at += 4;
         }
-        for (j, item) in chunks.remainder().iter().enumerate() {
+        for (j, item) in rest.iter().enumerate() {
             let d2 = (item.position() - q).length_squared();
             if d2 <= *bound {
                 scan(item, d2, at + j as u32, bound);

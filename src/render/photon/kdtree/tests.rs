@@ -1,5 +1,8 @@
 //! The kd-tree's searches against brute force, and its build's determinism.
 
+use glam::Vec4;
+
+use super::lanes::{distances4, within4};
 use super::*;
 use crate::render::sampling::{Sampler, Stream};
 
@@ -117,14 +120,19 @@ fn knn_breaks_ties_by_index_in_both_searches() {
 /// search's answer (ties included) is what one item at a time would give.
 #[test]
 fn four_distances_equal_the_scalar_ones() {
-    let pts = points(4000);
+    let mut pts = points(4000);
+    // Large, tiny and infinite coordinates too.
+    pts[0].p = Vec3A::new(1e30, -1e-30, 3.0);
+    pts[1].p = Vec3A::new(f32::INFINITY, 0.0, 1.0);
+    pts[2].p = Vec3A::new(-7e18, 2e19, f32::MIN_POSITIVE);
     let mut s = Sampler::new(12, Stream::Camera, 0);
-    for four in pts.chunks_exact(4) {
+    let (fours, _) = pts.as_chunks::<4>();
+    for four in fours {
         let q = Vec3A::new(s.next_f32(), s.next_f32(), s.next_f32()) * 3.0 - 1.0;
         let want = [0, 1, 2, 3].map(|j| (four[j].p - q).length_squared().to_bits());
-        assert_eq!(distances4(q, four).map(f32::to_bits), want);
+        assert_eq!(distances4(q, four).to_array().map(f32::to_bits), want);
     }
-    let d2 = [0.5, 1.0, f32::NAN, 2.0];
+    let d2 = Vec4::new(0.5, 1.0, f32::NAN, 2.0);
     assert_eq!(within4(d2, 1.0), 0b0011);
 }
 
