@@ -95,8 +95,8 @@ impl KdItem for Key {
 /// coordinate (a floor meeting a wall, split across the floor's height), the split would
 /// leave some of them on each side, and every query on that plane would search both
 /// halves. Such a split is replaced by one on the next longest axis where the median is
-/// clear of ties (else the last one tried stays; k = 1 render on scene 1: precompute 18.4 -> 15.9 ms, camera
-/// pass 98.7 -> 95.8 ms; build about 1 ms slower).
+/// clear of ties (else the last one tried stays; k = 1 render on scene 1: precompute 18.4 ->
+/// 15.9 ms, camera pass 98.7 -> 95.8 ms; build about 1 ms slower).
 fn balance(
     items: &mut [Key],
     node: usize,
