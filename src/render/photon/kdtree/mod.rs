@@ -222,9 +222,9 @@ impl<T: KdItem> KdTree<T> {
     /// children on a small stack: a recursive version measured 1.5x slower.
     ///
     /// The contract with `scan`: it never raises `bound`, and it accepts no item farther
-    /// than the bound as it stands (nor a NaN distance). The leaf scan relies on both: it
-    /// passes only items within the bound as it was at the start of each group of four, so
-    /// an item may still arrive after the bound has dropped below it, and must be refused.
+    /// than the bound as it stands. The leaf scan relies on both: it passes only items within
+    /// the bound as it was at the start of each group of four (never a NaN distance), so an
+    /// item may still arrive after the bound has dropped below it, and must be refused.
     #[inline]
     fn branch_and_bound(
         &self,
@@ -247,9 +247,10 @@ impl<T: KdItem> KdTree<T> {
     /// `scan` on the items of `lo..hi` within `bound` of `q` (see `branch_and_bound` for the
     /// contract). Most items of a leaf lie beyond the bound: their distances are computed
     /// four at a time, and only the items within it go to `scan`. Against one distance and
-    /// one call per item, on scene 1 (perf-tables, two alternating rounds): render at k = 1
-    /// 112.9 / 112.5 -> 110.8 / 106.9 ms, at k = 100 220.2 / 218.3 -> 215.5 / 213.0 ms;
-    /// images bit-identical.
+    /// one call per item, on scene 1 (perf-tables, two alternating rounds, with a first
+    /// version of `lanes.rs` in SSE2 intrinsics; the `Vec4` one measured the same or better):
+    /// render at k = 1 112.9 / 112.5 -> 110.8 / 106.9 ms, at k = 100 220.2 / 218.3 -> 215.5 /
+    /// 213.0 ms; images bit-identical.
     #[inline(always)]
     fn scan_leaf(
         &self,

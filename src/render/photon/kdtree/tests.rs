@@ -122,9 +122,10 @@ fn knn_breaks_ties_by_index_in_both_searches() {
 fn four_distances_equal_the_scalar_ones() {
     let mut pts = points(4000);
     // Large, tiny and infinite coordinates too.
-    pts[0].p = Vec3A::new(1e30, -1e-30, 3.0);
+    pts[0].p = Vec3A::new(3e18, -1e-30, 3.0);
     pts[1].p = Vec3A::new(f32::INFINITY, 0.0, 1.0);
-    pts[2].p = Vec3A::new(-7e18, 2e19, f32::MIN_POSITIVE);
+    pts[2].p = Vec3A::new(-7e17, 2e18, f32::MIN_POSITIVE);
+    pts[3].p = Vec3A::new(1e-20, 7e-21, -3e-20);
     let mut s = Sampler::new(12, Stream::Camera, 0);
     let (fours, _) = pts.as_chunks::<4>();
     for four in fours {
