@@ -1,6 +1,7 @@
 //! Balancing a kd-tree: median splits into leaf buckets, the splits in heap order.
 
 use glam::Vec3A;
+use rayon::prelude::*;
 
 use super::{KdItem, KdTree, LEAF, Split, halves};
 
@@ -52,7 +53,11 @@ impl<T: KdItem> KdTree<T> {
         if cancelled() {
             return None;
         }
-        let items: Vec<T> = keys.iter().map(|k| items[k.index as usize]).collect();
+        // The photons in tree order: a gather from all over the input, on the critical path
+        // after the last selection, so in parallel. Global map of 1M emitted photons (1.36M
+        // stored): build 181-191 -> 156-160 ms; tracing at n = 100k (both maps, trace and
+        // build) 45.1 -> 43.3 ms (perf-tables, alternating rounds).
+        let items: Vec<T> = keys.par_iter().map(|k| items[k.index as usize]).collect();
         let len = nodes.iter().map(|n| n.0 + 1).max().unwrap_or(0);
         let mut splits = vec![Split::default(); len];
         for (i, s) in nodes {
