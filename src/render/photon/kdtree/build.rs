@@ -27,20 +27,15 @@ impl<T: KdItem> KdTree<T> {
         items: Vec<T>,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Option<KdTree<T>> {
-        let mut lo = Vec3A::splat(f32::INFINITY);
-        let mut hi = Vec3A::splat(f32::NEG_INFINITY);
         let mut keys: Vec<Key> = items
             .iter()
             .enumerate()
-            .map(|(i, it)| {
-                let p = it.position();
-                (lo, hi) = (lo.min(p), hi.max(p));
-                Key {
-                    p: p.to_array(),
-                    index: i as u32,
-                }
+            .map(|(i, it)| Key {
+                p: it.position().to_array(),
+                index: i as u32,
             })
             .collect();
+        let (lo, hi) = bounds(&keys);
         let e = (hi - lo).max(Vec3A::ZERO);
         let area = 2.0 * (e.x * e.y + e.y * e.z + e.z * e.x);
         let density_hint = if area > 0.0 && area.is_finite() {
@@ -49,15 +44,20 @@ impl<T: KdItem> KdTree<T> {
             f32::INFINITY
         };
         let mut nodes = Vec::new();
-        balance(&mut keys, 0, &mut nodes, cancelled);
+        balance(&mut keys, (lo, hi), 0, &mut nodes, cancelled);
         if cancelled() {
             return None;
         }
         // The photons in tree order: a gather from all over the input, on the critical path
         // after the last selection, so in parallel. Global map of 1M emitted photons (1.36M
         // stored): build 181-191 -> 156-160 ms; tracing at n = 100k (both maps, trace and
-        // build) 45.1 -> 43.3 ms (perf-tables, alternating rounds).
-        let items: Vec<T> = keys.par_iter().map(|k| items[k.index as usize]).collect();
+        // build) 45.1 -> 43.3 ms (perf-tables, alternating rounds). Small trees stay on the
+        // calling thread.
+        let items: Vec<T> = keys
+            .par_iter()
+            .with_min_len(PARALLEL_BUILD_MIN)
+            .map(|k| items[k.index as usize])
+            .collect();
         let len = nodes.iter().map(|n| n.0 + 1).max().unwrap_or(0);
         let mut splits = vec![Split::default(); len];
         for (i, s) in nodes {
@@ -91,8 +91,19 @@ impl KdItem for Key {
     }
 }
 
-/// Median split on the axis of largest extent of the node's items, recursively; large
-/// halves in parallel. (Choosing the axis from the node's cell instead, which spares the
+/// The bounding box of `keys`' positions.
+fn bounds(keys: &[Key]) -> (Vec3A, Vec3A) {
+    let mut lo = Vec3A::splat(f32::INFINITY);
+    let mut hi = Vec3A::splat(f32::NEG_INFINITY);
+    for k in keys {
+        (lo, hi) = (lo.min(k.position()), hi.max(k.position()));
+    }
+    (lo, hi)
+}
+
+/// Median split on the axis of largest extent of the node's items, whose box the caller
+/// passes (the build has the root's from its first pass), recursively; large halves in
+/// parallel. (Choosing the axis from the node's cell instead, which spares the
 /// pass over the items, was measured: builds 4% faster, queries 25% slower.) Collects (node
 /// index, split) pairs, scattered into the heap-ordered array afterwards.
 ///
@@ -104,19 +115,13 @@ impl KdItem for Key {
 /// 15.9 ms, camera pass 98.7 -> 95.8 ms; build about 1 ms slower).
 fn balance(
     items: &mut [Key],
+    (lo, hi): (Vec3A, Vec3A),
     node: usize,
     out: &mut Vec<(usize, Split)>,
     cancelled: &(dyn Fn() -> bool + Sync),
 ) {
     if items.len() <= LEAF || (items.len() >= CANCEL_CHECK_MIN && cancelled()) {
         return;
-    }
-    let mut lo = Vec3A::splat(f32::INFINITY);
-    let mut hi = Vec3A::splat(f32::NEG_INFINITY);
-    for it in items.iter() {
-        let p = it.position();
-        lo = lo.min(p);
-        hi = hi.max(p);
     }
     let ext = hi - lo;
     let mut axes = [0usize, 1, 2];
@@ -143,12 +148,24 @@ fn balance(
     if left.len() >= PARALLEL_BUILD_MIN {
         let mut right_out = Vec::new();
         rayon::join(
-            || balance(left, 2 * node + 1, out, cancelled),
-            || balance(right, 2 * node + 2, &mut right_out, cancelled),
+            || balance_half(left, 2 * node + 1, out, cancelled),
+            || balance_half(right, 2 * node + 2, &mut right_out, cancelled),
         );
         out.extend(right_out);
     } else {
-        balance(left, 2 * node + 1, out, cancelled);
-        balance(right, 2 * node + 2, out, cancelled);
+        balance_half(left, 2 * node + 1, out, cancelled);
+        balance_half(right, 2 * node + 2, out, cancelled);
+    }
+}
+
+/// [`balance`] on one half of a node, with the half's box (a leaf needs none).
+fn balance_half(
+    items: &mut [Key],
+    node: usize,
+    out: &mut Vec<(usize, Split)>,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) {
+    if items.len() > LEAF {
+        balance(items, bounds(items), node, out, cancelled);
     }
 }
