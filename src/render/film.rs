@@ -101,10 +101,15 @@ pub fn render_film(
             let (tx, ty) = (t % tiles_x, t / tiles_x);
             let (x0, y0) = (tx * TILE, ty * TILE);
             let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
-            let mut out = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
+            let tw = (x1 - x0) as usize;
+            let mut out = vec![[0.0f32; 3]; tw * (y1 - y0) as usize];
             let mut bad = 0;
             for y in y0..y1 {
-                for x in x0..x1 {
+                // Rows alternate direction (a serpentine), so that each pixel follows a
+                // neighbour: the density lookups start from the last answer.
+                let forward = (y - y0) % 2 == 0;
+                for i in 0..x1 - x0 {
+                    let x = if forward { x0 + i } else { x1 - 1 - i };
                     let pixel = (y as u64) * w as u64 + x as u64;
                     let samples = (0..spp).map(|j| {
                         let mut s =
@@ -115,7 +120,7 @@ pub fn render_film(
                     });
                     let (v, nonfinite) = pixel_mean(samples);
                     bad += nonfinite as u64;
-                    out.push(v.to_array());
+                    out[(y - y0) as usize * tw + (x - x0) as usize] = v.to_array();
                 }
             }
             if bad > 0 {

@@ -93,16 +93,22 @@ pub fn render_with_maps(
 
     let t_pre = Instant::now();
     let classes = plan.global_classes();
-    let cache = match &maps.global {
-        Some(g) if !classes.is_empty() => Some(IrradianceCache::build(
-            g,
-            params.k,
-            global_max * global_max,
-            classes,
-            control,
-        )?),
-        _ => None,
-    };
+    // The two maps' lookup structures are independent: built side by side.
+    let (cache, caustic) = rayon::join(
+        || match &maps.global {
+            Some(g) if !classes.is_empty() => {
+                IrradianceCache::build(g, params.k, global_max * global_max, classes, control)
+                    .map(Some)
+            }
+            _ => Ok(None),
+        },
+        || {
+            maps.caustic
+                .as_ref()
+                .map(|m| Density::Knn(CausticLookup::new(m, params.k, caustic_max)))
+        },
+    );
+    let cache = cache?;
     let precompute = t_pre.elapsed().as_secs_f64();
 
     let camera = scene.camera.clone().with_resolution(
@@ -112,10 +118,7 @@ pub fn render_with_maps(
     let shader = Shader {
         scene,
         plan,
-        caustic: maps
-            .caustic
-            .as_ref()
-            .map(|m| Density::Knn(CausticLookup::new(m, params.k, caustic_max))),
+        caustic,
         global: cache.as_ref().map(Density::Cached),
         gather_rays: params.gather_rays,
         max_depth: params.max_depth,

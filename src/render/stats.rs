@@ -7,7 +7,8 @@ use serde::Serialize;
 pub struct Times {
     pub photon_trace: f64,
     pub build_maps: f64,
-    /// Irradiance precomputation at photons (Christensen 1999); part of the camera pass's cost.
+    /// Irradiance precomputation at photons (Christensen 1999), and the grids the camera
+    /// pass's lookups read; part of the camera pass's cost.
     pub precompute: f64,
     pub render: f64,
     pub total: f64,

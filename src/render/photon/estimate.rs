@@ -11,11 +11,10 @@
 //! keeps light from leaking through thin two-sided walls and around corners.
 
 use glam::Vec3A;
-use rayon::prelude::*;
 
 use super::occupancy::OccupancyGrid;
-use super::{ClassMask, IRRADIANCE_STRIDE, KdItem, KdTree, KnnScratch, PhotonMap};
-use crate::render::control::{Cancelled, Control, Phase};
+use super::point_grid::PointGrid;
+use super::{ClassMask, KdItem, KnnScratch, Photon, PhotonMap};
 use crate::render::math::Rgb;
 
 /// Minimum cosine between a photon's surface normal and the query's.
@@ -57,21 +56,46 @@ pub struct Query {
 /// Quesenberry 1965) with k+1 neighbours. If fewer than k+1 photons lie within the bound, all
 /// of them are summed over the bound's disc, which is unbiased too.
 pub fn irradiance_knn(map: &PhotonMap, q: &Query, scratch: &mut KnnScratch) -> RadianceEstimate {
+    irradiance_knn_from(map, q, None, scratch)
+}
+
+/// [`irradiance_knn`]; with `at`, the query is at that photon of the map (the search then
+/// starts from its leaf: [`super::KdTree::knn_at`]); `q.p` must be its position.
+pub(super) fn irradiance_knn_from(
+    map: &PhotonMap,
+    q: &Query,
+    at: Option<u32>,
+    scratch: &mut KnnScratch,
+) -> RadianceEstimate {
+    let Query { p, k, r2_max, .. } = *q;
+    debug_assert!(at.is_none_or(|i| map.tree.items()[i as usize].position() == p));
+    let filter = query_filter(q);
+    let r2 = match at {
+        Some(at) => map.tree.knn_at(at, k + 1, r2_max, &filter, scratch),
+        None => map.tree.knn(p, k + 1, r2_max, &filter, scratch),
+    };
+    estimate_from(map, scratch.found(), k, r2)
+}
+
+/// The photons a query counts: of its classes, on a surface facing its way, and not marked
+/// if it skips those.
+fn query_filter(q: &Query) -> impl Fn(&Photon) -> bool {
     let Query {
-        p,
         n_side,
-        k,
-        r2_max,
         classes,
         skip_marked,
+        ..
     } = *q;
-    let filter = |ph: &super::Photon| {
+    move |ph: &Photon| {
         classes.contains(ph.class())
             && ph.normal().dot(n_side) > NORMAL_COS
             && !(skip_marked && ph.is_irradiance_point())
-    };
-    let r2 = map.tree.knn(p, k + 1, r2_max, &filter, scratch);
-    let found = scratch.found();
+    }
+}
+
+/// The estimate from the k+1 nearest photons `found` (or fewer, all within the bound) and
+/// the squared radius `r2` the search returned.
+fn estimate_from(map: &PhotonMap, found: &[(f32, u32)], k: usize, r2: f32) -> RadianceEstimate {
     // With k+1 found the farthest (the last) only sets the radius.
     let inner = if found.len() == k + 1 {
         &found[..k]
@@ -112,15 +136,63 @@ pub fn irradiance_knn(map: &PhotonMap, q: &Query, scratch: &mut KnnScratch) -> R
 pub struct CausticLookup<'a> {
     pub map: &'a PhotonMap,
     grid: Option<OccupancyGrid>,
+    /// For small k, the map's photons in cells of twice the search bound: a search's box
+    /// then meets at most 8 cells, read directly (`PointGrid::knn`), where the kd-tree
+    /// descends about 9 levels. Same answers.
+    points: Option<PhotonGrid>,
     pub k: usize,
     pub r2_max: f32,
 }
 
+/// A caustic map's photons in a grid, with their tree indices (the ids of its searches, so
+/// that ties break as in the tree).
+struct PhotonGrid {
+    grid: PointGrid<Photon>,
+    ids: Vec<u32>,
+}
+
+/// The grid serves k-NN searches for k + 1 up to this (its sorted insertion suits few).
+const GRID_MAX_K: usize = 8;
+
+/// A search whose box meets more cells than this goes to the kd-tree.
+const GRID_MAX_CELLS: u32 = 8;
+
+impl PhotonGrid {
+    /// The photons of `map` in cells `cell` wide.
+    fn build(map: &PhotonMap, cell: f32) -> Option<PhotonGrid> {
+        let built = PointGrid::build(map.tree.items(), Some(cell))?;
+        Some(PhotonGrid {
+            grid: built.grid,
+            ids: built.order,
+        })
+    }
+
+    /// [`irradiance_knn`]'s answer for `q` (k + 1 at most GRID_MAX_K), or None if the
+    /// bound's box meets more than GRID_MAX_CELLS cells.
+    fn irradiance(
+        &self,
+        map: &PhotonMap,
+        q: &Query,
+        scratch: &mut KnnScratch,
+    ) -> Option<RadianceEstimate> {
+        let filter = query_filter(q);
+        let found = scratch.found_mut();
+        let (k, ids) = (q.k + 1, &self.ids);
+        let r2 = (self.grid).knn(q.p, k, q.r2_max, &filter, ids, GRID_MAX_CELLS, found)?;
+        Some(estimate_from(map, found, q.k, r2))
+    }
+}
+
 impl<'a> CausticLookup<'a> {
     pub fn new(map: &'a PhotonMap, k: usize, r_max: f32) -> CausticLookup<'a> {
+        // k + 1 <= GRID_MAX_K.
+        let points = (k < GRID_MAX_K)
+            .then(|| PhotonGrid::build(map, 2.0 * r_max))
+            .flatten();
         CausticLookup {
             map,
             grid: OccupancyGrid::build(map, r_max),
+            points,
             k,
             r2_max: r_max * r_max,
         }
@@ -131,7 +203,12 @@ impl<'a> CausticLookup<'a> {
         if self.grid.as_ref().is_some_and(|g| !g.maybe_occupied(p)) {
             return Rgb::ZERO;
         }
-        caustic_irradiance(self.map, p, n_side, self.k, self.r2_max, scratch).irradiance
+        let q = caustic_query(p, n_side, self.k, self.r2_max);
+        let grid = self.points.as_ref();
+        if let Some(est) = grid.and_then(|g| g.irradiance(self.map, &q, scratch)) {
+            return est.irradiance;
+        }
+        irradiance_knn(self.map, &q, scratch).irradiance
     }
 }
 
@@ -144,165 +221,17 @@ pub fn caustic_irradiance(
     r2_max: f32,
     scratch: &mut KnnScratch,
 ) -> RadianceEstimate {
-    let q = Query {
+    irradiance_knn(map, &caustic_query(p, n_side, k, r2_max), scratch)
+}
+
+/// A query of a caustic map (all classes, none skipped).
+fn caustic_query(p: Vec3A, n_side: Vec3A, k: usize, r2_max: f32) -> Query {
+    Query {
         p,
         n_side,
         k,
         r2_max,
         classes: ClassMask::ALL,
         skip_marked: false,
-    };
-    irradiance_knn(map, &q, scratch)
-}
-
-/// A point with precomputed irradiance (a "radiance photon").
-#[derive(Clone, Copy, Debug)]
-/// Kept small (20 bytes) so that a search touches few cache lines: the irradiance itself
-/// lives in a separate array at `index`.
-struct IrradiancePoint {
-    pos: [f32; 3],
-    index: u32,
-    /// Surface normal as i8 components of length 127 (as in [`super::Photon`]).
-    n: [i8; 3],
-}
-
-impl IrradiancePoint {
-    #[inline]
-    fn normal_dot(&self, v: Vec3A) -> f32 {
-        (self.n[0] as f32 * v.x + self.n[1] as f32 * v.y + self.n[2] as f32 * v.z) * (1.0 / 127.0)
-    }
-}
-
-impl KdItem for IrradiancePoint {
-    #[inline]
-    fn position(&self) -> Vec3A {
-        Vec3A::from_array(self.pos)
-    }
-}
-
-/// Irradiance precomputed at a subset of the photons (Christensen 1999, "Faster Photon Map
-/// Global Illumination", JGT 4(3)): the k-NN estimate is paid once per point instead of once
-/// per pixel or gather ray, and a lookup is a single nearest-point search.
-///
-/// Unlike Christensen's every-fourth photon, the points are the photons of one path in
-/// IRRADIANCE_STRIDE chosen by a hash of the path index (marked at tracing), and their
-/// estimates use only the other photons, scaled by stride / (stride - 1). A lookup returns
-/// the estimate of the nearest point, so points are found in proportion to the area of their
-/// Voronoi cells; if a point's estimate used the photons around it, sparse neighbourhoods
-/// (large cells, low estimates) would be over-represented (we measured -2.5% on a lit
-/// floor). With an independent thinning the estimates do not depend on the cells.
-///
-/// Built per render (it depends on k and on which path classes the integrator wants) from a
-/// cached, camera-independent photon map.
-pub struct IrradianceCache {
-    tree: KdTree<IrradiancePoint>,
-    /// Irradiance per path class of each point, by `IrradiancePoint::index`.
-    irradiance: Vec<[[f32; 3]; 3]>,
-    r2_max: f32,
-    /// Mean squared k-NN radius over the points (reported in the stats).
-    pub mean_r2: f64,
-}
-
-impl IrradianceCache {
-    pub fn build(
-        map: &PhotonMap,
-        k: usize,
-        r2_max: f32,
-        classes: ClassMask,
-        control: &Control,
-    ) -> Result<IrradianceCache, Cancelled> {
-        let photons = map.tree.items();
-        let picks: Vec<usize> = (0..photons.len())
-            .filter(|&i| photons[i].is_irradiance_point())
-            .collect();
-        let scale = IRRADIANCE_STRIDE as f32 / (IRRADIANCE_STRIDE - 1) as f32;
-        let tracker = control.tracker(Phase::Precompute, picks.len() as u64);
-        const CHUNK: usize = 1024;
-        let parts: Vec<Vec<([[f32; 3]; 3], f32)>> = picks
-            .par_chunks(CHUNK)
-            .map_init(KnnScratch::default, |scratch, chunk| {
-                control.check()?;
-                let out = chunk
-                    .iter()
-                    .map(|&i| {
-                        let ph = &photons[i];
-                        let q = Query {
-                            p: ph.position(),
-                            n_side: ph.normal(),
-                            k,
-                            r2_max,
-                            classes,
-                            skip_marked: true,
-                        };
-                        let est = irradiance_knn(map, &q, scratch);
-                        (est.by_class.map(|c| (c * scale).to_array()), est.r2)
-                    })
-                    .collect();
-                tracker.advance(chunk.len() as u64);
-                Ok(out)
-            })
-            .collect::<Result<_, Cancelled>>()?;
-        let mut irradiance = Vec::with_capacity(picks.len());
-        let mut r2_sum = 0.0f64;
-        for part in parts {
-            for (e, r2) in part {
-                r2_sum += r2 as f64;
-                irradiance.push(e);
-            }
-        }
-        let points: Vec<IrradiancePoint> = picks
-            .iter()
-            .enumerate()
-            .map(|(index, &i)| IrradiancePoint {
-                pos: photons[i].pos,
-                index: index as u32,
-                n: photons[i].normal_i8(),
-            })
-            .collect();
-        let mean_r2 = if irradiance.is_empty() {
-            0.0
-        } else {
-            r2_sum / points.len() as f64
-        };
-        Ok(IrradianceCache {
-            tree: KdTree::build(points),
-            irradiance,
-            r2_max,
-            mean_r2,
-        })
-    }
-
-    /// Irradiance of `classes` at the nearest point on a surface facing like `n_side`; zero
-    /// if none is within the search bound. `hint` carries the last answer between calls
-    /// (neighbouring pixels mostly share their nearest point; see [`KdTree::nearest`]).
-    #[inline]
-    pub fn lookup(
-        &self,
-        p: Vec3A,
-        n_side: Vec3A,
-        classes: ClassMask,
-        hint: &mut Option<u32>,
-    ) -> Rgb {
-        let filter = |q: &IrradiancePoint| q.normal_dot(n_side) > NORMAL_COS;
-        let Some((i, _)) = self.tree.nearest(p, self.r2_max, &filter, *hint) else {
-            return Rgb::ZERO;
-        };
-        *hint = Some(i);
-        let by_class = &self.irradiance[self.tree.items()[i as usize].index as usize];
-        let mut e = Rgb::ZERO;
-        for (c, v) in by_class.iter().enumerate() {
-            if classes.0 & (1 << c) != 0 {
-                e += Rgb::from_array(*v);
-            }
-        }
-        e
-    }
-
-    pub fn len(&self) -> usize {
-        self.tree.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.tree.is_empty()
     }
 }

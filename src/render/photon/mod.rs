@@ -7,15 +7,16 @@
 
 mod density;
 mod estimate;
+mod irradiance;
 mod kdtree;
 mod occupancy;
+mod point_grid;
 mod targets;
 mod trace;
 
 pub use density::{Density, DensityScratch, RadiusLookup};
-pub use estimate::{
-    CausticLookup, IrradianceCache, Query, RadianceEstimate, caustic_irradiance, irradiance_knn,
-};
+pub use estimate::{CausticLookup, Query, RadianceEstimate, caustic_irradiance, irradiance_knn};
+pub use irradiance::IrradianceCache;
 pub use kdtree::{KdItem, KdTree, KnnScratch};
 pub use occupancy::OccupancyGrid;
 pub use targets::{CausticTargets, TargetedDirection};

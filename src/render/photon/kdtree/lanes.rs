@@ -9,7 +9,7 @@ use super::KdItem;
 /// `(position - q).length_squared()` gives: glam sums (x^2 + y^2) + z^2, and so does this,
 /// lane by lane (a unit test checks).
 #[inline]
-pub(super) fn distances4<T: KdItem>(q: Vec3A, four: &[T; 4]) -> Vec4 {
+pub(in crate::render::photon) fn distances4<T: KdItem>(q: Vec3A, four: &[T; 4]) -> Vec4 {
     let [a, b, c, d] = four.each_ref().map(|it| it.position() - q);
     let x = Vec4::new(a.x, b.x, c.x, d.x);
     let y = Vec4::new(a.y, b.y, c.y, d.y);
@@ -19,6 +19,6 @@ pub(super) fn distances4<T: KdItem>(q: Vec3A, four: &[T; 4]) -> Vec4 {
 
 /// Bit j set where lane j of `d2` is at most `bound` (clear for NaN).
 #[inline]
-pub(super) fn within4(d2: Vec4, bound: f32) -> u32 {
+pub(in crate::render::photon) fn within4(d2: Vec4, bound: f32) -> u32 {
     d2.cmple(Vec4::splat(bound)).bitmask()
 }

@@ -11,22 +11,26 @@
 //! index, so the answer never depends on the guess); the guess is the previous query's
 //! radius on the same thread, which for the spatially coherent queries of a render (pixels
 //! of a tile, photons in tree order) is nearly right. This "radius-bounded gather" beats a
-//! heap-based search by several times at k = 50-100. Small k, the nearest item and the
-//! range search walk the tree by branch and bound; every search scans its leaves four
-//! items at a time (`lanes.rs`).
+//! heap-based search by several times at k = 50-100. Small k and the range search walk
+//! the tree by branch and bound (`search.rs`), from the root or, for a query at an item,
+//! climbing from the item's leaf; every search scans its leaves four items at a time
+//! (`lanes.rs`). The camera pass's per-pixel lookups use uniform grids instead
+//! (`photon/point_grid/`), with the same answers.
 //!
 //! Chosen over kiddo after measuring both on photon maps (benches/kdtree.rs, recorded in
 //! docs/performance.md).
 
-use std::cmp::Ordering;
 use std::mem::MaybeUninit;
 
 use glam::Vec3A;
 
-use lanes::{distances4, within4};
+pub(super) use lanes::{distances4, within4};
+use search::Start;
+pub(super) use search::{by_distance_then_index, offer_k_best};
 
 mod build;
 mod lanes;
+mod search;
 #[cfg(test)]
 mod tests;
 
@@ -83,11 +87,11 @@ impl KnnScratch {
     pub fn found(&self) -> &[(f32, u32)] {
         &self.found
     }
-}
 
-#[inline]
-fn by_distance_then_index(a: &(f32, u32), b: &(f32, u32)) -> Ordering {
-    a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
+    /// The buffer, for searches outside the tree (`photon/point_grid/`).
+    pub(in crate::render::photon) fn found_mut(&mut self) -> &mut Vec<(f32, u32)> {
+        &mut self.found
+    }
 }
 
 /// The two halves of a node's range: the median starts the right half.
@@ -130,7 +134,7 @@ impl<T: KdItem> KdTree<T> {
             return r2_max;
         }
         if k <= SMALL_K {
-            return self.knn_bounded(q, k, r2_max, filter, &mut scratch.found);
+            return self.knn_bounded(q, k, r2_max, filter, &mut scratch.found, Start::Root);
         }
         let guess = if scratch.r2_guess > 0.0 {
             scratch.r2_guess
@@ -168,38 +172,24 @@ impl<T: KdItem> KdTree<T> {
         }
     }
 
-    /// [`KdTree::knn`] for small k, by branch and bound (Friedman, Bentley and Finkel 1977):
-    /// the k best so far, sorted, bound the search. Same answer as the radius-bounded
-    /// gather (ties by index); for k of a few, a radius guessed from the last query is a
-    /// poor bet, as the distance to the 2nd nearest photon varies widely between
-    /// neighbouring queries (see `SMALL_K`).
-    fn knn_bounded(
+    /// [`KdTree::knn`] at the position of item `at` (the irradiance precomputation's
+    /// queries): for small k the search starts in `at`'s own leaf, found by index, and climbs
+    /// (see `climb`), instead of descending from the root on the query's coordinates. Same
+    /// answer.
+    pub fn knn_at(
         &self,
-        q: Vec3A,
+        at: u32,
         k: usize,
         r2_max: f32,
         filter: &impl Fn(&T) -> bool,
-        found: &mut Vec<(f32, u32)>,
+        scratch: &mut KnnScratch,
     ) -> f32 {
-        // While fewer than k are found, anything strictly within the bound enters.
-        let bound = self.branch_and_bound(q, r2_max, &mut |item, d2, i, bound| {
-            let enters = if found.len() < k {
-                d2 < r2_max
-            } else {
-                by_distance_then_index(&(d2, i), &found[k - 1]) == Ordering::Less
-            };
-            if enters && filter(item) {
-                if found.len() == k {
-                    found.pop();
-                }
-                let at = found.partition_point(|f| by_distance_then_index(f, &(d2, i)).is_lt());
-                found.insert(at, (d2, i));
-                if found.len() == k {
-                    *bound = found[k - 1].0;
-                }
-            }
-        });
-        if found.len() == k { bound } else { r2_max }
+        let q = self.items[at as usize].position();
+        if k == 0 || k > SMALL_K {
+            return self.knn(q, k, r2_max, filter, scratch);
+        }
+        scratch.found.clear();
+        self.knn_bounded(q, k, r2_max, filter, &mut scratch.found, Start::Item(at))
     }
 
     /// Call `visit(item, d2, index)` for every item within sqrt(r2) of `q` (strictly).
@@ -207,142 +197,11 @@ impl<T: KdItem> KdTree<T> {
     pub fn within(&self, q: Vec3A, r2: f32, visit: &mut impl FnMut(&T, f32, u32)) {
         // Subtrees across a plane at exactly sqrt(r2) are visited too; none of their items
         // is strictly within.
-        self.branch_and_bound(q, r2, &mut |item, d2, i, _| {
+        self.branch_and_bound(q, self.root(), r2, &mut |item, d2, i, _| {
             if d2 < r2 {
                 visit(item, d2, i);
             }
         });
-    }
-
-    /// Branch and bound (Friedman, Bentley and Finkel 1977), the walk every search here
-    /// makes: leaves are visited nearest first, and `scan(item, d2, index, bound)` sees
-    /// their items and may lower `bound`; subtrees across a plane farther than sqrt(bound)
-    /// are skipped (`>`: at exactly the bound, an item as near as the k-th but with a lower
-    /// index may lie across the plane). Returns the final bound. Iterative, with the far
-    /// children on a small stack: a recursive version measured 1.5x slower.
-    ///
-    /// The contract with `scan`: it never raises `bound`, and it accepts no item farther
-    /// than the bound as it stands. The leaf scan relies on both: it passes only items within
-    /// the bound as it was at the start of each group of four (never a NaN distance), so an
-    /// item may still arrive after the bound has dropped below it, and must be refused.
-    #[inline]
-    fn branch_and_bound(
-        &self,
-        q: Vec3A,
-        mut bound: f32,
-        scan: &mut impl FnMut(&T, f32, u32, &mut f32),
-    ) -> f32 {
-        let mut stack = Stack::new();
-        stack.push((0, 0, self.items.len() as u32, 0.0));
-        while let Some((node, lo, hi, plane_d2)) = stack.pop() {
-            if plane_d2 > bound {
-                continue;
-            }
-            let (lo, hi) = self.descend(q, (node, lo, hi), bound, &mut stack);
-            self.scan_leaf(q, lo, hi, &mut bound, scan);
-        }
-        bound
-    }
-
-    /// `scan` on the items of `lo..hi` within `bound` of `q` (see `branch_and_bound` for the
-    /// contract). Most items of a leaf lie beyond the bound: their distances are computed
-    /// four at a time, and only the items within it go to `scan`. Against one distance and
-    /// one call per item, on scene 1 (perf-tables, two alternating rounds, with a first
-    /// version of `lanes.rs` in SSE2 intrinsics; the `Vec4` one measured the same or better):
-    /// render at k = 1 112.9 / 112.5 -> 110.8 / 106.9 ms, at k = 100 220.2 / 218.3 -> 215.5 /
-    /// 213.0 ms; images bit-identical.
-    #[inline(always)]
-    fn scan_leaf(
-        &self,
-        q: Vec3A,
-        lo: u32,
-        hi: u32,
-        bound: &mut f32,
-        scan: &mut impl FnMut(&T, f32, u32, &mut f32),
-    ) {
-        let leaf = &self.items[lo as usize..hi as usize];
-        let (fours, rest) = leaf.as_chunks::<4>();
-        let mut at = lo;
-        for four in fours {
-            let d2 = distances4(q, four);
-            let mask = within4(d2, *bound);
-            if mask != 0 {
-                for (j, item) in four.iter().enumerate() {
-                    if mask & (1 << j) != 0 {
-                        scan(item, d2[j], at + j as u32, bound);
-                    }
-                }
-            }
-            at += 4;
-        }
-        for (j, item) in rest.iter().enumerate() {
-            let d2 = (item.position() - q).length_squared();
-            if d2 <= *bound {
-                scan(item, d2, at + j as u32, bound);
-            }
-        }
-    }
-
-    /// From the subtree `(node, lo, hi)` down to the leaf on `q`'s side; every far child
-    /// whose plane lies within sqrt(`bound`) waits on `stack` with its squared plane
-    /// distance. Returns the leaf's item range. (Every search here starts this way.)
-    #[inline]
-    fn descend(
-        &self,
-        q: Vec3A,
-        (mut node, mut lo, mut hi): (u32, u32, u32),
-        bound: f32,
-        stack: &mut Stack<(u32, u32, u32, f32)>,
-    ) -> (u32, u32) {
-        while (hi - lo) as usize > LEAF {
-            let mid = halves(lo as usize, hi as usize) as u32;
-            let s = self.splits[node as usize];
-            let d = q[s.axis as usize] - s.value;
-            let (near, far) = if d < 0.0 {
-                ((2 * node + 1, lo, mid), (2 * node + 2, mid, hi))
-            } else {
-                ((2 * node + 2, mid, hi), (2 * node + 1, lo, mid))
-            };
-            if d * d <= bound {
-                stack.push((far.0, far.1, far.2, d * d));
-            }
-            (node, lo, hi) = near;
-        }
-        (lo, hi)
-    }
-
-    /// The nearest item passing `filter` within sqrt(r2_max), as (index, squared distance);
-    /// of equally near items, the one with the lowest index. `hint` is an index to try first
-    /// (usually the previous query's answer): a near hint shrinks the search, and the answer
-    /// does not depend on it.
-    pub fn nearest(
-        &self,
-        q: Vec3A,
-        r2_max: f32,
-        filter: &impl Fn(&T) -> bool,
-        hint: Option<u32>,
-    ) -> Option<(u32, f32)> {
-        let mut best: Option<(u32, f32)> = None;
-        let mut r2 = r2_max;
-        if let Some(h) = hint.filter(|&h| (h as usize) < self.items.len()) {
-            let item = &self.items[h as usize];
-            let d2 = (item.position() - q).length_squared();
-            if d2 < r2 && filter(item) {
-                best = Some((h, d2));
-                r2 = d2;
-            }
-        }
-        self.branch_and_bound(q, r2, &mut |item, d2, i, r2| {
-            let better = match best {
-                Some((bi, bd2)) => d2 < bd2 || (d2 == bd2 && i < bi),
-                None => d2 < *r2,
-            };
-            if better && filter(item) {
-                best = Some((i, d2));
-                *r2 = d2;
-            }
-        });
-        best
     }
 }
 

@@ -64,16 +64,6 @@ fn knn_matches_brute_force_whatever_the_guess() {
         assert_eq!(got, want, "k = {k}");
         assert_eq!(r2, all[k - 1].0);
         assert_eq!(scratch.found().last().unwrap().0, r2, "the k-th is last");
-        let (n, d2) = tree.nearest(q, f32::INFINITY, &odd, None).unwrap();
-        assert_eq!(tree.items()[n as usize].id, all[0].1);
-        assert_eq!(d2, all[0].0);
-        // Any hint gives the same answer.
-        for hint in [0, 17, n, 4999] {
-            assert_eq!(
-                tree.nearest(q, f32::INFINITY, &odd, Some(hint)),
-                Some((n, d2))
-            );
-        }
         let bound = all[16].0 * 1.0001;
         let mut count = 0;
         tree.within(q, bound, &mut |p, _, _| count += odd(p) as usize);
@@ -112,6 +102,39 @@ fn knn_breaks_ties_by_index_in_both_searches() {
                 let want_r2 = if all.len() == k { all[k - 1].0 } else { r2_max };
                 assert_eq!(r2, want_r2);
             }
+        }
+    }
+}
+
+/// A search from an item's own leaf upward finds what a search from the root finds.
+#[test]
+fn knn_at_an_item_equals_knn_at_its_position() {
+    let pts = points(6000);
+    let tree = KdTree::build(pts);
+    let lattice: Vec<P> = (0..1000)
+        .map(|i| P {
+            p: Vec3A::new((i % 10) as f32, (i / 10 % 10) as f32, (i / 100) as f32),
+            id: i as u32,
+        })
+        .collect();
+    let ties = KdTree::build(lattice);
+    let (mut a, mut b) = (KnnScratch::default(), KnnScratch::default());
+    for t in [&tree, &ties] {
+        for i in (0..t.len() as u32).step_by(7) {
+            // Every k of the small-k search with every bound (none, a few photons', a
+            // lattice step's), and one k above it.
+            let k = [1, 2, 3, 5, SMALL_K, SMALL_K + 3][i as usize % 6];
+            let r2_max = [f32::INFINITY, 1e-3, 2.0][i as usize / 6 % 3];
+            let odd = |p: &P| p.id % 2 == 1;
+            let q = t.items()[i as usize].position();
+            let want = t.knn(q, k, r2_max, &odd, &mut a);
+            let got = t.knn_at(i, k, r2_max, &odd, &mut b);
+            let sorted = |s: &KnnScratch| {
+                let mut v = s.found().to_vec();
+                v.sort_by(by_distance_then_index);
+                v
+            };
+            assert_eq!((got, sorted(&b)), (want, sorted(&a)), "item {i}, k = {k}");
         }
     }
 }
