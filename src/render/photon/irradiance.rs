@@ -111,7 +111,7 @@ impl IrradianceCache {
                 })
                 .collect::<Result<Vec<Vec<([[f32; 3]; 3], f32)>>, Cancelled>>()
         };
-        let (parts, built) = rayon::join(estimate, || PointGrid::build(&points, None));
+        let (parts, grid) = rayon::join(estimate, || PointGrid::build(&points, None));
         let parts = parts?;
         let mut irradiance = Vec::with_capacity(picks.len());
         let mut r2_sum = 0.0f64;
@@ -126,13 +126,9 @@ impl IrradianceCache {
         } else {
             r2_sum / points.len() as f64
         };
-        let (grid, irradiance) = match built {
-            Some(s) => {
-                let sorted = s.order.iter().map(|&i| irradiance[i as usize]).collect();
-                (Some(s.grid), sorted)
-            }
-            None => (None, Vec::new()),
-        };
+        let irradiance = grid.as_ref().map_or(Vec::new(), |g| {
+            g.order().iter().map(|&i| irradiance[i as usize]).collect()
+        });
         Ok(IrradianceCache {
             grid,
             irradiance,

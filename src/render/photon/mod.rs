@@ -5,6 +5,7 @@
 //! [`PhotonMaps`] is an immutable value that does not depend on the camera: the server
 //! caches it and renders many views from one.
 
+mod cells;
 mod density;
 mod estimate;
 mod irradiance;
@@ -12,6 +13,8 @@ mod kdtree;
 mod occupancy;
 mod point_grid;
 mod targets;
+#[cfg(test)]
+mod test_points;
 mod trace;
 
 pub use density::{Density, DensityScratch, RadiusLookup};

@@ -4,17 +4,16 @@
 //! of a scene receives no caustic at all), and this turns most per-pixel caustic queries
 //! into one memory read.
 
-use glam::{IVec3, UVec3, Vec3A};
+use glam::{IVec3, Vec3A};
 
+use super::cells::Cells;
 use super::{KdItem, PhotonMap};
 
 /// The number of cells is capped so that the grid stays small (at most 2^21 bits = 256 KiB).
 const MAX_CELLS: u64 = 1 << 21;
 
 pub struct OccupancyGrid {
-    origin: Vec3A,
-    inv_cell: f32,
-    dims: UVec3,
+    cells: Cells,
     bits: Vec<u64>,
 }
 
@@ -22,7 +21,7 @@ impl OccupancyGrid {
     /// Cells of at least `radius` over the map's photons (dilated by one cell).
     pub fn build(map: &PhotonMap, radius: f32) -> Option<OccupancyGrid> {
         let items = map.tree.items();
-        if items.is_empty() || !(radius > 0.0) {
+        if items.is_empty() || !(radius > 0.0 && radius.is_finite()) {
             return None;
         }
         let mut lo = Vec3A::splat(f32::INFINITY);
@@ -31,29 +30,18 @@ impl OccupancyGrid {
             lo = lo.min(p.position());
             hi = hi.max(p.position());
         }
+        if !(hi - lo).is_finite() {
+            return None;
+        }
         // Cells a hair wider than the radius, so that rounding can never put a photon and a
-        // query within the radius two cells apart; spare cells on each side for the dilation.
-        let mut cell = radius * 1.001;
-        let dims = loop {
-            let d = ((hi - lo) / cell).floor() + Vec3A::splat(4.0);
-            if (d.x as u64) * (d.y as u64) * (d.z as u64) <= MAX_CELLS {
-                break UVec3::new(d.x as u32, d.y as u32, d.z as u32);
-            }
-            cell *= 1.5;
-        };
-        let origin = lo - Vec3A::splat(cell);
-        let n = dims.x as usize * dims.y as usize * dims.z as usize;
-        let mut grid = OccupancyGrid {
-            origin,
-            inv_cell: 1.0 / cell,
-            dims,
-            bits: vec![0; n.div_ceil(64)],
-        };
-        let max = dims.as_ivec3() - IVec3::ONE;
+        // query within the radius two cells apart; two spare cells on each side for the
+        // dilation and for a query within the radius of the outermost photons.
+        let cells = Cells::cover(lo, hi, radius * 1.001, 2, MAX_CELLS);
+        let mut bits = vec![0u64; cells.count().div_ceil(64)];
+        let max = cells.dims().as_ivec3() - IVec3::ONE;
         for p in items {
             // Clamped: rounding may put a photon on the boundary into a spare cell.
-            let c = ((p.position() - origin) * grid.inv_cell).floor().as_ivec3();
-            let c = c.clamp(IVec3::ZERO, max);
+            let c = cells.clamped(p.position()).as_ivec3();
             for dz in -1..=1i32 {
                 for dy in -1..=1i32 {
                     for dx in -1..=1i32 {
@@ -61,38 +49,21 @@ impl OccupancyGrid {
                         if q.cmplt(IVec3::ZERO).any() || q.cmpgt(max).any() {
                             continue;
                         }
-                        let i = grid.index(q.as_uvec3());
-                        grid.bits[i / 64] |= 1 << (i % 64);
+                        let i = cells.index(q.as_uvec3()) as usize;
+                        bits[i / 64] |= 1 << (i % 64);
                     }
                 }
             }
         }
-        Some(grid)
-    }
-
-    #[inline]
-    fn cell_of(&self, p: Vec3A) -> Option<UVec3> {
-        let c = ((p - self.origin) * self.inv_cell).floor();
-        let ok = c.x >= 0.0
-            && c.y >= 0.0
-            && c.z >= 0.0
-            && c.x < self.dims.x as f32
-            && c.y < self.dims.y as f32
-            && c.z < self.dims.z as f32;
-        ok.then(|| UVec3::new(c.x as u32, c.y as u32, c.z as u32))
-    }
-
-    #[inline]
-    fn index(&self, c: UVec3) -> usize {
-        (c.z as usize * self.dims.y as usize + c.y as usize) * self.dims.x as usize + c.x as usize
+        Some(OccupancyGrid { cells, bits })
     }
 
     /// False only if no photon of the map lies within the build radius of `p`.
     #[inline]
     pub fn maybe_occupied(&self, p: Vec3A) -> bool {
-        match self.cell_of(p) {
+        match self.cells.within(p) {
             Some(c) => {
-                let i = self.index(c);
+                let i = self.cells.index(c) as usize;
                 self.bits[i / 64] & (1 << (i % 64)) != 0
             }
             None => false,

@@ -4,31 +4,11 @@ use glam::Vec4;
 
 use super::lanes::{distances4, within4};
 use super::*;
+use crate::render::photon::test_points::{P, lattice, on_planes};
 use crate::render::sampling::{Sampler, Stream};
 
-#[derive(Clone, Copy, Debug)]
-struct P {
-    p: Vec3A,
-    id: u32,
-}
-impl KdItem for P {
-    fn position(&self) -> Vec3A {
-        self.p
-    }
-}
-
 fn points(n: usize) -> Vec<P> {
-    let mut s = Sampler::new(9, Stream::Camera, 0);
-    (0..n)
-        .map(|i| P {
-            p: Vec3A::new(
-                s.next_f32(),
-                s.next_f32(),
-                (s.next_f32() * 4.0).floor() * 0.25,
-            ),
-            id: i as u32,
-        })
-        .collect()
+    on_planes(n, 9)
 }
 
 #[test]
@@ -75,13 +55,7 @@ fn knn_matches_brute_force_whatever_the_guess() {
 /// the same ones (the lowest indices), as a brute-force ranking does.
 #[test]
 fn knn_breaks_ties_by_index_in_both_searches() {
-    let lattice: Vec<P> = (0..1000)
-        .map(|i| P {
-            p: Vec3A::new((i % 10) as f32, (i / 10 % 10) as f32, (i / 100) as f32),
-            id: i as u32,
-        })
-        .collect();
-    let tree = KdTree::build(lattice);
+    let tree = KdTree::build(lattice(0.0));
     let mut scratch = KnnScratch::default();
     for (j, k) in [1, 2, 5, SMALL_K, SMALL_K + 1, 30].into_iter().enumerate() {
         for q in [Vec3A::new(4.0, 4.0, 4.0), Vec3A::new(4.5, 4.5, 4.0)] {
@@ -111,13 +85,7 @@ fn knn_breaks_ties_by_index_in_both_searches() {
 fn knn_at_an_item_equals_knn_at_its_position() {
     let pts = points(6000);
     let tree = KdTree::build(pts);
-    let lattice: Vec<P> = (0..1000)
-        .map(|i| P {
-            p: Vec3A::new((i % 10) as f32, (i / 10 % 10) as f32, (i / 100) as f32),
-            id: i as u32,
-        })
-        .collect();
-    let ties = KdTree::build(lattice);
+    let ties = KdTree::build(lattice(0.0));
     let (mut a, mut b) = (KnnScratch::default(), KnnScratch::default());
     for t in [&tree, &ties] {
         for i in (0..t.len() as u32).step_by(7) {

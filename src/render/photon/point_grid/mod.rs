@@ -9,13 +9,18 @@
 //! tree's balancing. Measured in docs/performance.md.
 //!
 //! Answers are exact: the nearest point passing the filter strictly within the bound, of
-//! equally near ones the lowest grid index; or the k nearest by (distance, caller's id),
-//! which is the kd-tree's answer when the ids are tree indices. The ball's box holds every
-//! point within the bound (cells are a monotone function of position, and the box's bounds
-//! carry a margin for the rounding of one addition), and the answer is a minimum over what
-//! is scanned, so it depends neither on the scanning order nor on the hint.
+//! equally near ones the lowest grid index; or the k nearest by (distance, input index),
+//! which is the kd-tree's answer for a grid built from the tree's items. The ball's box
+//! holds every point within the bound (cells are a monotone function of position, and the
+//! box's bounds carry a margin for the rounding of one addition), and the answer is a
+//! minimum over what is scanned, so it depends neither on the scanning order nor on the
+//! hint. The cell layout is the occupancy grid's (`cells.rs`).
+
+use std::ops::Range;
 
 use glam::{IVec3, UVec3, Vec3A};
+
+use super::cells::Cells;
 
 use super::KdItem;
 use super::kdtree::{distances4, offer_k_best, within4};
@@ -38,25 +43,15 @@ const MAX_HINTED_CELLS: u32 = 27;
 const MAX_CELLS: u64 = 1 << 20;
 
 pub struct PointGrid<T: KdItem> {
-    origin: Vec3A,
-    cell: f32,
-    inv_cell: f32,
+    cells: Cells,
     /// Slack on a query box's bounds, so that rounding never leaves a point's cell out.
     margin: f32,
-    dims: UVec3,
-    /// The last cell's coordinates, as floats.
-    max_cell: Vec3A,
     /// The points of cell c are `points[starts[c]..starts[c + 1]]`. Cells are numbered x
     /// fastest, so a run of cells along x is one contiguous range.
     starts: Vec<u32>,
     points: Vec<T>,
-}
-
-/// A grid and where each of its points came from.
-pub struct GridBuild<T: KdItem> {
-    pub grid: PointGrid<T>,
-    /// `order[i]`: the input index of the grid's point i.
-    pub order: Vec<u32>,
+    /// `order[i]`: the input index of point i.
+    order: Vec<u32>,
 }
 
 impl<T: KdItem> PointGrid<T> {
@@ -64,7 +59,7 @@ impl<T: KdItem> PointGrid<T> {
     /// without it, CELL_SPACINGS of the points' mean spacing. Points at a non-finite
     /// position are left out (no search's bound can hold them). None without any other, or
     /// if their box is too large for f32 (beyond any scene the loader accepts).
-    pub fn build(points: &[T], cell: Option<f32>) -> Option<GridBuild<T>> {
+    pub fn build(points: &[T], cell: Option<f32>) -> Option<PointGrid<T>> {
         let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
         for p in points
             .iter()
@@ -83,40 +78,22 @@ impl<T: KdItem> PointGrid<T> {
         // only.
         let area = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
         let spacing = (area / points.len() as f32).sqrt();
-        let mut cell = match cell {
+        let cell = match cell {
             Some(c) if c > 0.0 && c.is_finite() => c,
             _ if spacing > 0.0 && spacing.is_finite() => CELL_SPACINGS * spacing,
             _ => size.max_element().max(1.0),
         };
-        let dims = loop {
-            // In f64: a tiny cell makes the counts overflow any integer.
-            let d = (size / cell).floor() + Vec3A::ONE;
-            if d.x as f64 * d.y as f64 * d.z as f64 <= MAX_CELLS as f64 {
-                break UVec3::new(d.x as u32, d.y as u32, d.z as u32);
-            }
-            cell *= 1.25;
-        };
-        let mut grid = PointGrid {
-            origin: lo,
-            cell,
-            inv_cell: 1.0 / cell,
-            // A few ulps of the largest coordinate, and a hair of a cell.
-            margin: lo.abs().max(hi.abs()).max_element() * 1e-6 + cell * 1e-4,
-            dims,
-            max_cell: dims.as_vec3a() - Vec3A::ONE,
-            starts: Vec::new(),
-            points: Vec::new(),
-        };
+        let cells = Cells::cover(lo, hi, cell, 0, MAX_CELLS);
+        // A few ulps of the largest coordinate, and a hair of a cell.
+        let margin = lo.abs().max(hi.abs()).max_element() * 1e-6 + cells.width() * 1e-4;
         // Counting sort by cell (u32::MAX: left out).
-        let cells: Vec<u32> = points
-            .iter()
-            .map(|p| match p.position() {
-                x if x.is_finite() => grid.index(grid.cell_of(x)),
-                _ => u32::MAX,
-            })
-            .collect();
-        let mut starts = vec![0u32; (dims.x * dims.y * dims.z) as usize + 1];
-        for &c in cells.iter().filter(|&&c| c != u32::MAX) {
+        let cell_of = |p: Vec3A| match p.is_finite() {
+            true => cells.index(cells.clamped(p)),
+            false => u32::MAX,
+        };
+        let cells_of: Vec<u32> = points.iter().map(|p| cell_of(p.position())).collect();
+        let mut starts = vec![0u32; cells.count() + 1];
+        for &c in cells_of.iter().filter(|&&c| c != u32::MAX) {
             starts[c as usize + 1] += 1;
         }
         for c in 1..starts.len() {
@@ -124,33 +101,27 @@ impl<T: KdItem> PointGrid<T> {
         }
         let mut next = starts.clone();
         let mut order = vec![0u32; *starts.last().expect("one cell at least") as usize];
-        for (i, &c) in cells.iter().enumerate().filter(|&(_, &c)| c != u32::MAX) {
+        for (i, &c) in cells_of.iter().enumerate().filter(|&(_, &c)| c != u32::MAX) {
             let slot = &mut next[c as usize];
             order[*slot as usize] = i as u32;
             *slot += 1;
         }
-        grid.points = order.iter().map(|&i| points[i as usize]).collect();
-        grid.starts = starts;
-        Some(GridBuild { grid, order })
+        Some(PointGrid {
+            cells,
+            margin,
+            starts,
+            points: order.iter().map(|&i| points[i as usize]).collect(),
+            order,
+        })
+    }
+
+    /// The input index of each point, in the grid's order.
+    pub fn order(&self) -> &[u32] {
+        &self.order
     }
 
     pub fn len(&self) -> usize {
         self.points.len()
-    }
-
-    /// The cell of `p`, clamped to the grid (NaN goes to cell 0). Clamped to zero first,
-    /// so truncation is the floor; all of it is monotone in `p`.
-    #[inline]
-    fn cell_of(&self, p: Vec3A) -> UVec3 {
-        let c = ((p - self.origin) * self.inv_cell)
-            .max(Vec3A::ZERO)
-            .min(self.max_cell);
-        c.as_ivec3().as_uvec3()
-    }
-
-    #[inline]
-    fn index(&self, c: UVec3) -> u32 {
-        (c.z * self.dims.y + c.y) * self.dims.x + c.x
     }
 
     /// The nearest point passing `filter` strictly within sqrt(r2_max) of `q`, as (grid
@@ -164,37 +135,27 @@ impl<T: KdItem> PointGrid<T> {
         filter: &impl Fn(&T) -> bool,
         hint: Option<u32>,
     ) -> Option<(u32, f32)> {
-        let mut best = Best {
-            found: None,
-            bound: r2_max,
-        };
+        let mut best = Best::new(r2_max);
         if let Some(h) = hint.filter(|&h| (h as usize) < self.points.len()) {
             let p = &self.points[h as usize];
             best.consider(h, p, (p.position() - q).length_squared(), filter);
         }
-        let mut cells = best.found.map(|_| self.ball_box(q, best.bound));
-        // A far hint (the last pixel saw another object) would make a large box: a first
-        // candidate from the rings around `q` makes a smaller one.
-        if cells.is_none_or(|(lo, hi)| volume(lo, hi) > MAX_HINTED_CELLS) {
-            best = Best {
-                found: None,
-                bound: r2_max,
-            };
-            if !self.first_candidate(q, filter, &mut best) {
-                return None;
+        let hinted = best.found.map(|_| self.ball_box(q, best.bound));
+        let (lo, hi) = match hinted.filter(|&(lo, hi)| volume(lo, hi) <= MAX_HINTED_CELLS) {
+            Some(cells) => cells,
+            // No hint, or a far one (the last pixel saw another object): a first candidate
+            // from the rings of cells about `q` makes a smaller box.
+            None => {
+                best = Best::new(r2_max);
+                if !self.first_candidate(q, filter, &mut best) {
+                    return None;
+                }
+                self.ball_box(q, best.bound)
             }
-            cells = Some(self.ball_box(q, best.bound));
-        }
-        let (lo, hi) = cells.expect("set above");
+        };
         for z in lo.z..=hi.z {
             for y in lo.y..=hi.y {
-                self.scan_row(
-                    IVec3::new(lo.x as i32, y as i32, z as i32),
-                    hi.x,
-                    q,
-                    filter,
-                    &mut best,
-                );
+                self.scan(self.run(lo.x, hi.x, y, z), q, filter, &mut best);
             }
         }
         best.found
@@ -205,44 +166,48 @@ impl<T: KdItem> PointGrid<T> {
     #[inline]
     fn ball_box(&self, q: Vec3A, r2: f32) -> (UVec3, UVec3) {
         let r = Vec3A::splat(r2.sqrt() * (1.0 + 1e-4) + self.margin);
-        (self.cell_of(q - r), self.cell_of(q + r))
+        (self.cells.clamped(q - r), self.cells.clamped(q + r))
     }
 
     /// The k nearest points passing `filter` strictly within sqrt(r2_max) of `q`, into
-    /// `found` as (squared distance, id) sorted nearest first, ids from `ids` (by grid
-    /// index) breaking ties: [`super::KdTree::knn`]'s answer when `ids` are tree indices.
-    /// Returns the k-th distance if k were found, else `r2_max`; None (and nothing found)
-    /// when the bound's box meets more than `max_cells` cells.
+    /// `found` as (squared distance, input index) sorted nearest first, ties to the lower
+    /// input index: [`super::KdTree::knn`]'s answer for a grid built from a tree's items.
+    /// Returns the k-th distance if k were found, else `r2_max`. None (and nothing found)
+    /// when the bound's box is no small search: more than `limits.cells` cells, or more than
+    /// `limits.points` points (a dense spot, such as a caustic's focus, where a tree prunes
+    /// what a grid must read).
     #[inline]
-    #[allow(clippy::too_many_arguments)]
     pub fn knn(
         &self,
         q: Vec3A,
         k: usize,
         r2_max: f32,
         filter: &impl Fn(&T) -> bool,
-        ids: &[u32],
-        max_cells: u32,
+        limits: BoxLimits,
         found: &mut Vec<(f32, u32)>,
     ) -> Option<f32> {
         found.clear();
+        if k == 0 {
+            return Some(r2_max);
+        }
         let (lo, hi) = self.ball_box(q, r2_max);
-        if k == 0 || volume(lo, hi) > max_cells || !r2_max.is_finite() {
-            return (k == 0).then_some(r2_max);
+        if volume(lo, hi) > limits.cells || !r2_max.is_finite() {
+            return None;
+        }
+        let runs = || {
+            (lo.z..=hi.z).flat_map(move |z| (lo.y..=hi.y).map(move |y| self.run(lo.x, hi.x, y, z)))
+        };
+        if runs().map(|r| r.len()).sum::<usize>() > limits.points {
+            return None;
         }
         let mut bound = r2_max;
-        for z in lo.z..=hi.z {
-            for y in lo.y..=hi.y {
-                let row = (z * self.dims.y + y) * self.dims.x;
-                let a = self.starts[(row + lo.x) as usize] as usize;
-                let b = self.starts[(row + hi.x + 1) as usize] as usize;
-                for (p, &id) in self.points[a..b].iter().zip(&ids[a..b]) {
-                    let d2 = (p.position() - q).length_squared();
-                    if d2 <= bound
-                        && let Some(b) = offer_k_best(found, k, r2_max, (d2, id), || filter(p))
-                    {
-                        bound = b;
-                    }
+        for run in runs() {
+            for (p, &id) in self.points[run.clone()].iter().zip(&self.order[run]) {
+                let d2 = (p.position() - q).length_squared();
+                if d2 <= bound
+                    && let Some(b) = offer_k_best(found, k, r2_max, (d2, id), || filter(p))
+                {
+                    bound = b;
                 }
             }
         }
@@ -254,25 +219,25 @@ impl<T: KdItem> PointGrid<T> {
     /// finishes from that point's distance.
     #[inline(never)]
     fn first_candidate(&self, q: Vec3A, filter: &impl Fn(&T) -> bool, best: &mut Best) -> bool {
-        let c0 = self.cell_of(q).as_ivec3();
-        let dims = self.dims.as_ivec3();
+        let c0 = self.cells.clamped(q).as_ivec3();
+        let dims = self.cells.dims().as_ivec3();
         let mut m = 0i32;
         loop {
             // Points of ring m are at least (m - 1) cells away; one more ring for rounding.
-            let gap = (m - 2).max(0) as f32 * self.cell;
+            let gap = (m - 2).max(0) as f32 * self.cells.width();
             let lo = c0 - IVec3::splat(m);
             let hi = c0 + IVec3::splat(m);
             let outside = lo.cmple(IVec3::ZERO).all() && hi.cmpge(dims - IVec3::ONE).all();
             for z in lo.z.max(0)..=hi.z.min(dims.z - 1) {
                 for y in lo.y.max(0)..=hi.y.min(dims.y - 1) {
-                    let (x0, x1) = (lo.x.max(0), hi.x.min(dims.x - 1));
-                    if z == lo.z || z == hi.z || y == lo.y || y == hi.y {
-                        self.scan_row(IVec3::new(x0, y, z), x1 as u32, q, filter, best);
-                    } else {
-                        for x in [lo.x, hi.x] {
-                            if (0..dims.x).contains(&x) {
-                                self.scan_row(IVec3::new(x, y, z), x as u32, q, filter, best);
-                            }
+                    // On the ring's faces in y or z, the whole row; else its two ends.
+                    let face = z == lo.z || z == hi.z || y == lo.y || y == hi.y;
+                    let (whole, ends) = ([(lo.x.max(0), hi.x.min(dims.x - 1))], [lo.x, hi.x]);
+                    let xs: &[(i32, i32)] = if face { &whole } else { &ends.map(|x| (x, x)) };
+                    for &(x0, x1) in xs {
+                        if x0 <= x1 && x0 >= 0 && x1 < dims.x {
+                            let run = self.run(x0 as u32, x1 as u32, y as u32, z as u32);
+                            self.scan(run, q, filter, best);
                         }
                     }
                 }
@@ -287,23 +252,20 @@ impl<T: KdItem> PointGrid<T> {
         }
     }
 
-    /// The points of the cells from `from` to x = `to_x` along its row.
+    /// The points of cells `x0..=x1` of row (`y`, `z`): one contiguous run.
     #[inline(always)]
-    fn scan_row(
-        &self,
-        from: IVec3,
-        to_x: u32,
-        q: Vec3A,
-        filter: &impl Fn(&T) -> bool,
-        best: &mut Best,
-    ) {
-        let row = (from.z as u32 * self.dims.y + from.y as u32) * self.dims.x;
-        let a = self.starts[(row + from.x as u32) as usize];
-        let b = self.starts[(row + to_x + 1) as usize];
-        // Four squared distances at a time (as the kd-tree's leaf scan): most points lie
-        // beyond the bound, and only those within it are looked at one by one.
-        let (fours, rest) = self.points[a as usize..b as usize].as_chunks::<4>();
-        let mut i = a;
+    fn run(&self, x0: u32, x1: u32, y: u32, z: u32) -> Range<usize> {
+        let row = self.cells.index(UVec3::new(0, y, z));
+        self.starts[(row + x0) as usize] as usize..self.starts[(row + x1 + 1) as usize] as usize
+    }
+
+    /// `best.consider` on the points of `run`, four squared distances at a time (as the
+    /// kd-tree's leaf scan): most points lie beyond the bound, and only those within it are
+    /// looked at one by one.
+    #[inline(always)]
+    fn scan(&self, run: Range<usize>, q: Vec3A, filter: &impl Fn(&T) -> bool, best: &mut Best) {
+        let mut i = run.start as u32;
+        let (fours, rest) = self.points[run].as_chunks::<4>();
         for four in fours {
             let d2 = distances4(q, four);
             let mut mask = within4(d2, best.bound);
@@ -321,6 +283,15 @@ impl<T: KdItem> PointGrid<T> {
     }
 }
 
+/// How small a search [`PointGrid::knn`] takes on; above either, it declines.
+#[derive(Clone, Copy, Debug)]
+pub struct BoxLimits {
+    /// Cells in the bound's box.
+    pub cells: u32,
+    /// Points in those cells.
+    pub points: usize,
+}
+
 /// Cells from `lo` to `hi`, inclusive.
 #[inline]
 fn volume(lo: UVec3, hi: UVec3) -> u32 {
@@ -335,6 +306,10 @@ struct Best {
 }
 
 impl Best {
+    fn new(bound: f32) -> Best {
+        Best { found: None, bound }
+    }
+
     #[inline(always)]
     fn consider<T: KdItem>(&mut self, i: u32, p: &T, d2: f32, filter: &impl Fn(&T) -> bool) {
         let better = match self.found {

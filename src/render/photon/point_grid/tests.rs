@@ -2,37 +2,26 @@
 
 use glam::Vec3A;
 
-use super::PointGrid;
-use crate::render::photon::{KdItem, KdTree, KnnScratch};
+use super::{BoxLimits, PointGrid};
+
+/// At most 8 cells; points without limit.
+const LIMITS: BoxLimits = BoxLimits {
+    cells: 8,
+    points: usize::MAX,
+};
+use crate::render::photon::kdtree::by_distance_then_index;
+use crate::render::photon::test_points::{P, lattice, on_planes};
+use crate::render::photon::{KdTree, KnnScratch};
 use crate::render::sampling::{Sampler, Stream};
 
-#[derive(Clone, Copy, Debug)]
-struct P {
-    p: Vec3A,
-    id: u32,
-}
-impl KdItem for P {
-    fn position(&self) -> Vec3A {
-        self.p
-    }
-}
-
-/// Points on four planes (as photons lie on walls), and a few in between.
+/// Points on four planes (as photons lie on walls), and one in 50 lifted off them.
 fn points(n: usize, seed: u64) -> Vec<P> {
-    let mut s = Sampler::new(seed, Stream::Camera, 0);
-    (0..n)
-        .map(|i| {
-            let z = if i % 50 == 0 {
-                s.next_f32()
-            } else {
-                (s.next_f32() * 4.0).floor() * 0.25
-            };
-            P {
-                p: Vec3A::new(s.next_f32(), s.next_f32(), z),
-                id: i as u32,
-            }
-        })
-        .collect()
+    let mut s = Sampler::new(seed, Stream::Camera, 1);
+    let mut pts = on_planes(n, seed);
+    for p in pts.iter_mut().step_by(50) {
+        p.p.z = s.next_f32();
+    }
+    pts
 }
 
 /// The nearest point passing `filter` within the bound, ties to the lowest grid index.
@@ -55,10 +44,9 @@ fn brute_nearest(
 #[test]
 fn nearest_matches_brute_force_whatever_the_hint() {
     let pts = points(3000, 1);
-    let built = PointGrid::build(&pts, None).unwrap();
-    let grid = &built.grid;
+    let grid = &PointGrid::build(&pts, None).unwrap();
     // The order says where each grid point came from.
-    for (i, &o) in built.order.iter().enumerate() {
+    for (i, &o) in grid.order().iter().enumerate() {
         assert_eq!(grid.points[i].id, pts[o as usize].id);
     }
     let mut s = Sampler::new(2, Stream::Camera, 0);
@@ -113,14 +101,7 @@ fn nearest_breaks_ties_by_index() {
         (0.0, Some(0.5)),
     ];
     for (offset, cell) in cases {
-        let lattice: Vec<P> = (0..1000)
-            .map(|i| P {
-                p: Vec3A::new((i % 10) as f32, (i / 10 % 10) as f32, (i / 100) as f32)
-                    + Vec3A::splat(offset),
-                id: i as u32,
-            })
-            .collect();
-        let grid = PointGrid::build(&lattice, cell).unwrap().grid;
+        let grid = PointGrid::build(&lattice(offset), cell).unwrap();
         for q in [
             Vec3A::new(4.5, 4.5, 4.0),
             Vec3A::new(4.5, 4.5, 4.5),
@@ -138,14 +119,13 @@ fn nearest_breaks_ties_by_index() {
     }
 }
 
-/// With tree indices as ids, the grid's k-NN is the tree's, ties included; a box over
-/// `max_cells` declines.
+/// Built from a tree's items, the grid's k-NN is the tree's, ties included; a box over
+/// the limits declines.
 #[test]
 fn knn_matches_the_tree() {
     let tree = KdTree::build(points(4000, 3));
     let r_max = 0.03;
-    let built = PointGrid::build(tree.items(), Some(2.0 * r_max)).unwrap();
-    let (grid, ids) = (&built.grid, &built.order);
+    let grid = &PointGrid::build(tree.items(), Some(2.0 * r_max)).unwrap();
     let mut s = Sampler::new(4, Stream::Camera, 0);
     let (mut tree_scratch, mut found) = (KnnScratch::default(), Vec::new());
     let mut answered = 0;
@@ -155,14 +135,14 @@ fn knn_matches_the_tree() {
         let k = 1 + i % 8;
         let r2_max = [r_max * r_max, 1e-4, 0.0][i / 8 % 3];
         let even = |p: &P| p.id.is_multiple_of(2);
-        let Some(r2) = grid.knn(q, k, r2_max, &even, ids, 8, &mut found) else {
+        let Some(r2) = grid.knn(q, k, r2_max, &even, LIMITS, &mut found) else {
             assert!(found.is_empty());
             continue;
         };
         answered += 1;
         let want_r2 = tree.knn(q, k, r2_max, &even, &mut tree_scratch);
         let mut want = tree_scratch.found().to_vec();
-        want.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        want.sort_by(by_distance_then_index);
         assert_eq!(found, want, "q = {q}, k = {k}");
         assert_eq!(r2, want_r2);
     }
@@ -173,11 +153,21 @@ fn knn_matches_the_tree() {
     // A bound wider than the cells: the box meets too many; no bound at all: the same.
     let all = |_: &P| true;
     for r2_max in [1.0, f32::INFINITY] {
-        let got = grid.knn(Vec3A::splat(0.5), 2, r2_max, &all, ids, 8, &mut found);
+        let got = grid.knn(Vec3A::splat(0.5), 2, r2_max, &all, LIMITS, &mut found);
         assert_eq!(got, None);
     }
+    // A box holding more points than allowed declines too, one holding none answers.
+    let none = BoxLimits {
+        cells: 8,
+        points: 0,
+    };
+    let (on_a_plane, between) = (Vec3A::new(0.5, 0.5, 0.25), Vec3A::new(0.5, 0.5, 0.125));
+    let got = grid.knn(on_a_plane, 2, r_max * r_max, &all, none, &mut found);
+    assert_eq!(got, None);
+    let got = grid.knn(between, 2, 1e-4, &all, none, &mut found);
+    assert_eq!((got, found.len()), (Some(1e-4), 0));
     // k = 0: nothing, and the bound.
-    let got = grid.knn(Vec3A::splat(0.5), 0, 1e-4, &all, ids, 8, &mut found);
+    let got = grid.knn(Vec3A::splat(0.5), 0, 1e-4, &all, LIMITS, &mut found);
     assert_eq!((got, found.len()), (Some(1e-4), 0));
 }
 
@@ -207,10 +197,9 @@ fn degenerate_sets_still_answer() {
     for set in [&one[..], &same[..], &flat[..], &line[..], &holes[..]] {
         // Automatic cells, tiny ones (the grid's size caps them) and huge ones.
         for cell in [None, Some(1e-30), Some(1e30)] {
-            let built = PointGrid::build(set, cell).unwrap();
-            let grid = &built.grid;
+            let grid = &PointGrid::build(set, cell).unwrap();
             let finite = set.iter().filter(|p| p.p.is_finite()).count();
-            assert_eq!((grid.points.len(), built.order.len()), (finite, finite));
+            assert_eq!((grid.points.len(), grid.order().len()), (finite, finite));
             for q in [
                 Vec3A::ZERO,
                 Vec3A::splat(2.0),
