@@ -85,23 +85,33 @@ impl Frame {
     }
 }
 
-/// sin and cos of `theta` (|theta| up to about one turn) to about 3e-7: a quadrant reduction
-/// and Taylor polynomials on [-pi/4, pi/4]. Sampling calls this once or twice per bounce,
-/// and libm's `sincosf` was 8% of photon tracing.
+/// sin and cos of 2 pi `u` for `u` in [0, 1] (an angle in turns, as sampling draws it), to
+/// about 3e-7. The angle is folded onto [-pi/2, pi/2] by its symmetries alone (a subtraction
+/// and an absolute value, no quadrant index), and Taylor polynomials cover that interval
+/// (their first omitted terms are below 6e-8 there). Sampling calls this once or twice per
+/// bounce: libm's `sincosf` was 8% of photon tracing, and the quadrant-reducing version this
+/// replaced spent a float-to-int conversion and a four-way jump on every call. The
+/// polynomials are evaluated in Estrin's scheme (powers y, y^2, y^4 of psi^2), a shorter
+/// dependency chain than Horner's. Photon tracing of both maps at n = 100k on one thread:
+/// 73.3-74.0 -> 72.1-72.3 ms with Horner's scheme, and about 0.8 ms less with Estrin's.
 #[inline]
-pub fn sin_cos(theta: f32) -> (f32, f32) {
-    use std::f32::consts::{FRAC_2_PI, FRAC_PI_2};
-    let k = (theta * FRAC_2_PI + 0.5f32.copysign(theta)) as i32;
-    let r = theta - k as f32 * FRAC_PI_2;
-    let r2 = r * r;
-    let s = r * (1.0 + r2 * (-1.0 / 6.0 + r2 * (1.0 / 120.0 + r2 * (-1.0 / 5040.0))));
-    let c = 1.0 + r2 * (-0.5 + r2 * (1.0 / 24.0 + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40320.0))));
-    match k & 3 {
-        0 => (s, c),
-        1 => (c, -s),
-        2 => (-s, -c),
-        _ => (-c, s),
-    }
+pub fn sin_cos_turns(u: f32) -> (f32, f32) {
+    use std::f32::consts::TAU;
+    // 2 pi u = 2 pi x + pi; |2 pi x| = psi + pi/2 with psi in [-pi/2, pi/2].
+    let x = u - 0.5;
+    let psi = (x.abs() - 0.25) * TAU;
+    let y = psi * psi;
+    let y2 = y * y;
+    let y4 = y2 * y2;
+    let sin_psi = psi
+        * ((1.0 - y * (1.0 / 6.0))
+            + y2 * (1.0 / 120.0 - y * (1.0 / 5040.0))
+            + y4 * (1.0 / 362_880.0 - y * (1.0 / 39_916_800.0)));
+    let cos_psi = (1.0 - y * 0.5)
+        + y2 * (1.0 / 24.0 - y * (1.0 / 720.0))
+        + y4 * ((1.0 / 40320.0 - y * (1.0 / 3_628_800.0)) + y2 * (1.0 / 479_001_600.0));
+    // sin(2 pi u) = -sin(2 pi x) = -sign(x) cos(psi); cos(2 pi u) = -cos(2 pi |x|) = sin(psi).
+    (cos_psi.copysign(-x), sin_psi)
 }
 
 /// Round half away from zero by truncation (no libm call on baseline x86-64).
@@ -140,13 +150,15 @@ mod tests {
     }
 
     #[test]
-    fn fast_sin_cos_is_accurate_over_a_turn_each_way() {
-        for i in -10_000..=10_000 {
-            let t = i as f32 * 0.000_7;
-            let (s, c) = sin_cos(t);
+    fn sin_cos_in_turns_is_accurate_over_the_turn() {
+        for i in 0..=100_000 {
+            let u = i as f32 / 100_000.0;
+            let (s, c) = sin_cos_turns(u);
+            let phi = std::f64::consts::TAU * u as f64;
+            let (es, ec) = phi.sin_cos();
             assert!(
-                (s - t.sin()).abs() < 5e-7 && (c - t.cos()).abs() < 5e-7,
-                "{t}"
+                (s as f64 - es).abs() < 5e-7 && (c as f64 - ec).abs() < 5e-7,
+                "u = {u}: ({s}, {c}) against ({es}, {ec})"
             );
         }
     }

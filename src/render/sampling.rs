@@ -8,7 +8,7 @@ use std::f32::consts::{FRAC_1_PI, TAU};
 
 use glam::{Vec2, Vec3A};
 
-use crate::render::math::sin_cos;
+use crate::render::math::sin_cos_turns;
 use rand::Rng;
 use rand_pcg::Pcg64Mcg;
 
@@ -63,7 +63,7 @@ pub fn splitmix64(mut z: u64) -> u64 {
 pub fn uniform_sphere(u: Vec2) -> Vec3A {
     let z = 1.0 - 2.0 * u.x;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let (sin_phi, cos_phi) = sin_cos(TAU * u.y);
+    let (sin_phi, cos_phi) = sin_cos_turns(u.y);
     Vec3A::new(r * cos_phi, r * sin_phi, z)
 }
 
@@ -75,7 +75,7 @@ pub fn uniform_sphere(u: Vec2) -> Vec3A {
 #[inline]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3A {
     let r = u.x.sqrt();
-    let (s, c) = sin_cos(TAU * u.y);
+    let (s, c) = sin_cos_turns(u.y);
     Vec3A::new(r * c, r * s, (1.0 - u.x).max(0.0).sqrt())
 }
 
@@ -92,7 +92,7 @@ pub fn uniform_cone(u: Vec2, one_minus_cos_max: f32) -> Vec3A {
     let one_minus_cos = u.x * one_minus_cos_max;
     let cos_theta = 1.0 - one_minus_cos;
     let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
-    let (sin_phi, cos_phi) = sin_cos(TAU * u.y);
+    let (sin_phi, cos_phi) = sin_cos_turns(u.y);
     Vec3A::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
 }
 
@@ -102,7 +102,7 @@ pub fn uniform_cone(u: Vec2, one_minus_cos_max: f32) -> Vec3A {
 pub fn power_cosine(u: Vec2, exponent: f32) -> Vec3A {
     let cos_theta = u.x.powf(1.0 / (exponent + 1.0));
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let (sin_phi, cos_phi) = sin_cos(TAU * u.y);
+    let (sin_phi, cos_phi) = sin_cos_turns(u.y);
     Vec3A::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
 }
 

@@ -150,7 +150,8 @@ fn trace(
         .into_par_iter()
         .map(|c| {
             control.check()?;
-            let mut out = Vec::new();
+            // Room for two stored photons per path, so that a chunk seldom regrows.
+            let mut out = Vec::with_capacity(2 * CHUNK as usize);
             let end = ((c + 1) * CHUNK).min(emitted);
             for i in c * CHUNK..end {
                 let mut s = Sampler::new(seed, stream, i);
