@@ -58,13 +58,20 @@ pub fn splitmix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// The vector at distance `r` from the z axis, azimuth 2 pi `u_phi`, height `z`: where every
+/// warp below puts its sample once it has drawn the distance and height.
+#[inline]
+fn around_z(r: f32, u_phi: f32, z: f32) -> Vec3A {
+    let (sin_phi, cos_phi) = sin_cos_turns(u_phi);
+    Vec3A::new(r * cos_phi, r * sin_phi, z)
+}
+
 /// Uniform direction on the unit sphere; pdf 1/(4 pi).
 #[inline]
 pub fn uniform_sphere(u: Vec2) -> Vec3A {
     let z = 1.0 - 2.0 * u.x;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let (sin_phi, cos_phi) = sin_cos_turns(u.y);
-    Vec3A::new(r * cos_phi, r * sin_phi, z)
+    around_z(r, u.y, z)
 }
 
 /// Cosine-weighted direction in the local hemisphere around +z (Malley's method);
@@ -75,8 +82,7 @@ pub fn uniform_sphere(u: Vec2) -> Vec3A {
 #[inline]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3A {
     let r = u.x.sqrt();
-    let (s, c) = sin_cos_turns(u.y);
-    Vec3A::new(r * c, r * s, (1.0 - u.x).max(0.0).sqrt())
+    around_z(r, u.y, (1.0 - u.x).max(0.0).sqrt())
 }
 
 #[inline]
@@ -92,8 +98,7 @@ pub fn uniform_cone(u: Vec2, one_minus_cos_max: f32) -> Vec3A {
     let one_minus_cos = u.x * one_minus_cos_max;
     let cos_theta = 1.0 - one_minus_cos;
     let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
-    let (sin_phi, cos_phi) = sin_cos_turns(u.y);
-    Vec3A::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
+    around_z(sin_theta, u.y, cos_theta)
 }
 
 /// Direction around +z distributed as cos^exponent (the modified-Phong lobe, Lafortune and
@@ -102,8 +107,7 @@ pub fn uniform_cone(u: Vec2, one_minus_cos_max: f32) -> Vec3A {
 pub fn power_cosine(u: Vec2, exponent: f32) -> Vec3A {
     let cos_theta = u.x.powf(1.0 / (exponent + 1.0));
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let (sin_phi, cos_phi) = sin_cos_turns(u.y);
-    Vec3A::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta)
+    around_z(sin_theta, u.y, cos_theta)
 }
 
 #[inline]

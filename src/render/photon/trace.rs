@@ -71,6 +71,17 @@ enum Target {
     Caustic,
 }
 
+impl Target {
+    /// Whether a path stores at most one photon in this map (at its first non-specular
+    /// hit): nothing later on the path can be stored, so tracing stops there.
+    fn one_per_path(self) -> bool {
+        matches!(
+            self,
+            Target::Caustic | Target::Global(PhotonStore::DirectOnly)
+        )
+    }
+}
+
 /// Photons of one tracing run, in photon-index order, with their flux unit (W).
 pub struct TraceOutput {
     pub photons: Vec<Photon>,
@@ -150,8 +161,14 @@ fn trace(
         .into_par_iter()
         .map(|c| {
             control.check()?;
-            // Room for two stored photons per path, so that a chunk seldom regrows.
-            let mut out = Vec::with_capacity(2 * CHUNK as usize);
+            // Room for two stored photons per path, so that a chunk of the global map seldom
+            // regrows; maps of at most one a path (blind caustic paths mostly store none)
+            // grow on demand.
+            let mut out = if target.one_per_path() {
+                Vec::new()
+            } else {
+                Vec::with_capacity(2 * CHUNK as usize)
+            };
             let end = ((c + 1) * CHUNK).min(emitted);
             for i in c * CHUNK..end {
                 let mut s = Sampler::new(seed, stream, i);
@@ -287,8 +304,7 @@ fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Pho
                     irradiance_point,
                 ));
             }
-            // Nothing later on this path can be stored in these maps.
-            if target == Target::Caustic || target == Target::Global(PhotonStore::DirectOnly) {
+            if target.one_per_path() {
                 return;
             }
         }
