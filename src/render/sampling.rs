@@ -37,6 +37,13 @@ impl Sampler {
         }
     }
 
+    /// A placeholder for a lane without work, never drawn from.
+    pub fn idle() -> Sampler {
+        Sampler {
+            rng: Pcg64Mcg::new(1),
+        }
+    }
+
     /// Uniform in [0, 1).
     #[inline]
     pub fn next_f32(&mut self) -> f32 {

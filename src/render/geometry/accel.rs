@@ -14,7 +14,7 @@ use obvhs::{
 };
 
 use super::flat::Flat;
-use super::{Hit, Primitive, Ray, shapes::ShapeHit};
+use super::{Hit, PrimId, Primitive, Ray, shapes::ShapeHit};
 
 impl Boundable for Primitive {
     fn aabb(&self) -> Aabb {
@@ -26,6 +26,13 @@ impl Boundable for Primitive {
 /// few quads and spheres, a BVH culls almost nothing and costs a traversal (measured 110 ns
 /// a camera ray through the BVH against 63 ns by a linear scan, scene 1).
 const FLAT_MAX: usize = 16;
+
+/// Where a ray first meets a primitive.
+#[derive(Clone, Copy, Debug)]
+pub struct PrimHit {
+    prim: PrimId,
+    hit: ShapeHit,
+}
 
 /// All primitives of a scene, reordered to the BVH's leaf order so that a leaf's primitive
 /// index is the primitive's id (no BVH for tiny scenes).
@@ -69,34 +76,55 @@ impl Accel {
 
     /// The closest hit along the ray, if any.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.closest(ray).map(|c| self.hit_point(ray, c))
+    }
+
+    /// The primitive the ray meets first, before its surface point is worked out.
+    fn closest(&self, ray: &Ray) -> Option<PrimHit> {
         let Some(bvh) = self.bvh.as_ref() else {
-            return self.intersect_flat(ray);
+            let (prim, hit) = self.flat.as_ref()?.intersect(ray)?;
+            return Some(PrimHit { prim, hit });
         };
         let bray = BvhRay::new(ray.o, ray.d, 0.0, ray.t_max);
-        let mut best: Option<(u32, ShapeHit)> = None;
+        let mut best: Option<PrimHit> = None;
         let mut rh = RayHit::none();
         bvh.ray_traverse(bray, &mut rh, |r, id| {
             let prim = &self.prims[id];
             let mut probe = *ray;
             probe.t_max = r.tmax;
             match prim.shape.intersect(&probe, id as u32) {
-                Some(h) => {
-                    best = Some((id as u32, h));
-                    h.t
+                Some(hit) => {
+                    best = Some(PrimHit {
+                        prim: id as u32,
+                        hit,
+                    });
+                    hit.t
                 }
                 None => f32::INFINITY,
             }
         });
-        let (id, h) = best?;
-        let point = self.prims[id as usize].shape.surface_point(ray, &h, id);
-        Some(Hit { t: h.t, point })
+        best
     }
 
-    /// Closest hit by testing every primitive, four at a time.
-    fn intersect_flat(&self, ray: &Ray) -> Option<Hit> {
-        let (id, h) = self.flat.as_ref()?.intersect(ray)?;
-        let point = self.prims[id as usize].shape.surface_point(ray, &h, id);
-        Some(Hit { t: h.t, point })
+    /// The surface point of `ray`'s closest hit `c`.
+    #[inline]
+    pub fn hit_point(&self, ray: &Ray, c: PrimHit) -> Hit {
+        let point = self.prims[c.prim as usize]
+            .shape
+            .surface_point(ray, &c.hit, c.prim);
+        Hit { t: c.hit.t, point }
+    }
+
+    /// [`Accel::intersect`] for up to four rays (None: an idle lane, which gets None), the
+    /// surface points left to [`Accel::hit_point`]. A tiny scene tests the four together
+    /// (`packet.rs`); the answers are the same as one by one.
+    #[inline]
+    pub fn closest4(&self, rays: [Option<&Ray>; 4]) -> [Option<PrimHit>; 4] {
+        let Some(flat) = self.flat.as_ref() else {
+            return rays.map(|r| r.and_then(|r| self.closest(r)));
+        };
+        flat.intersect4(rays)
+            .map(|h| h.map(|(prim, hit)| PrimHit { prim, hit }))
     }
 
     /// Whether anything blocks the ray before `ray.t_max` (shadow rays).

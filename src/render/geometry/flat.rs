@@ -8,6 +8,7 @@
 
 use glam::{Vec3A, Vec4};
 
+use super::packet::{Rays4, Splats, lane_prim};
 use super::shapes::{Shape, ShapeHit};
 use super::{NO_PRIM, PrimId, Ray};
 
@@ -38,6 +39,8 @@ pub struct Flat {
     spheres: Vec<Spheres4>,
     /// Anything else (triangles), tested one by one.
     others: Vec<(PrimId, Shape)>,
+    /// The quads and spheres again, for four rays at a time.
+    splats: Splats,
 }
 
 fn lanes<const N: usize>(v: [Vec3A; N]) -> [Vec4; 3] {
@@ -52,12 +55,12 @@ fn lanes<const N: usize>(v: [Vec3A; N]) -> [Vec4; 3] {
 }
 
 #[inline]
-fn dot3(a: &[Vec4; 3], b: [Vec4; 3]) -> Vec4 {
+pub(super) fn dot3(a: &[Vec4; 3], b: [Vec4; 3]) -> Vec4 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 #[inline]
-fn splat3(v: Vec3A) -> [Vec4; 3] {
+pub(super) fn splat3(v: Vec3A) -> [Vec4; 3] {
     [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)]
 }
 
@@ -68,7 +71,7 @@ fn ids_f32(id: &[PrimId; 4]) -> Vec4 {
 
 /// A ray's origin or target primitive as a float that matches no padding lane.
 #[inline]
-fn prim_f32(id: PrimId) -> f32 {
+pub(super) fn prim_f32(id: PrimId) -> f32 {
     if id == NO_PRIM { -2.0 } else { id as f32 }
 }
 
@@ -152,6 +155,7 @@ impl Flat {
             quads,
             spheres,
             others,
+            splats: Splats::new(prims),
         }
     }
 
@@ -167,6 +171,29 @@ impl Flat {
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
         self.search::<true>(ray).is_some()
+    }
+
+    /// [`Flat::intersect`] for four rays (None: an idle lane, which gets None), each lane's
+    /// answer bit for bit the one-ray answer (see `packet.rs`).
+    #[inline]
+    pub fn intersect4(&self, rays: [Option<&Ray>; 4]) -> [Option<(PrimId, ShapeHit)>; 4] {
+        let hits = self.splats.intersect4(&Rays4::new(rays));
+        std::array::from_fn(|l| {
+            let ray = rays[l]?;
+            let mut best = lane_prim(hits.idf[l]).map(|id| {
+                let uv = [hits.s[l], hits.v[l]];
+                (id, ShapeHit { t: hits.t[l], uv })
+            });
+            let mut probe = *ray;
+            probe.t_max = hits.t[l];
+            for (id, s) in &self.others {
+                if let Some(h) = s.intersect(&probe, *id) {
+                    probe.t_max = h.t;
+                    best = Some((*id, h));
+                }
+            }
+            best
+        })
     }
 
     /// The closest hit, or with ANY, the first found.
@@ -289,7 +316,8 @@ mod tests {
     use super::*;
     use crate::render::sampling::{Sampler, Stream, uniform_sphere};
 
-    /// The SIMD tests agree with the scalar ones of `shapes.rs` on random rays.
+    /// The SIMD tests agree with the scalar ones of `shapes.rs` on random rays, and the
+    /// four-ray tests with the one-ray ones.
     #[test]
     fn matches_scalar_intersection() {
         let shapes = vec![
@@ -333,6 +361,7 @@ mod tests {
         ];
         let flat = Flat::new(&shapes);
         let mut s = Sampler::new(1, Stream::Camera, 0);
+        let mut lanes = [None; 4];
         for i in 0..50_000 {
             let o = Vec3A::new(
                 s.next_f32() * 1.8 - 0.9,
@@ -352,6 +381,20 @@ mod tests {
                 if let Some(h) = sh.intersect(&probe, id as u32) {
                     probe.t_max = h.t;
                     want = Some((id as u32, h.t));
+                }
+            }
+            // Four lanes at a time, one idle now and then: each lane, bit for bit, the
+            // one-ray answer.
+            let lane = i % 4;
+            lanes[lane] = (i % 11 != 0).then_some(ray);
+            if lane == 3 {
+                let bits = |h: Option<(PrimId, ShapeHit)>| {
+                    h.map(|(id, h)| (id, h.t.to_bits(), h.uv.map(f32::to_bits)))
+                };
+                let four = flat.intersect4(lanes.each_ref().map(Option::as_ref));
+                for l in 0..4 {
+                    let one = lanes[l].and_then(|r| flat.intersect(&r));
+                    assert_eq!(bits(four[l]), bits(one), "ray {i}, lane {l}");
                 }
             }
             let got = flat.intersect(&ray).map(|(id, h)| (id, h.t));

@@ -10,10 +10,11 @@
 
 mod accel;
 mod flat;
+mod packet;
 mod shapes;
 mod triangle_f64;
 
-pub use accel::Accel;
+pub use accel::{Accel, PrimHit};
 pub use shapes::{Primitive, Shape, Surface};
 
 use glam::Vec3A;

@@ -11,6 +11,7 @@ mod estimate;
 mod irradiance;
 mod kdtree;
 mod occupancy;
+mod path;
 mod point_grid;
 mod targets;
 #[cfg(test)]

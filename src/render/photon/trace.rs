@@ -5,12 +5,10 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
+use super::path::{LightPicker, PathSetup, PhotonPath, Target};
 use super::{IRRADIANCE_STRIDE, PathClass, Photon, PhotonMap, PhotonMaps};
 use crate::render::control::{Cancelled, Control, Phase};
-use crate::render::geometry::{Surface, spawn_ray};
-use crate::render::light::Light;
-use crate::render::material::Transport;
-use crate::render::math::{luminance, luminance_f64, max_component};
+use crate::render::math::luminance_f64;
 use crate::render::sampling::{Sampler, Stream, splitmix64};
 use crate::render::scene::Scene;
 
@@ -34,7 +32,7 @@ impl PhotonStore {
         }
     }
 
-    fn keeps(self, class: PathClass) -> bool {
+    pub(super) fn keeps(self, class: PathClass) -> bool {
         match self {
             PhotonStore::Indirect => class != PathClass::Direct,
             PhotonStore::All => true,
@@ -62,26 +60,6 @@ pub struct PhotonParams {
     pub dark_lights: Vec<u32>,
 }
 
-/// Which map a tracing run fills.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Target {
-    Global(PhotonStore),
-    /// Only light -> specular+ -> non-specular paths; tracing stops at the first
-    /// non-specular hit.
-    Caustic,
-}
-
-impl Target {
-    /// Whether a path stores at most one photon in this map (at its first non-specular
-    /// hit): nothing later on the path can be stored, so tracing stops there.
-    fn one_per_path(self) -> bool {
-        matches!(
-            self,
-            Target::Caustic | Target::Global(PhotonStore::DirectOnly)
-        )
-    }
-}
-
 /// Photons of one tracing run, in photon-index order, with their flux unit (W).
 pub struct TraceOutput {
     pub photons: Vec<Photon>,
@@ -92,41 +70,6 @@ pub struct TraceOutput {
 /// Photons per parallel work item: large enough to amortise scheduling, small enough for
 /// prompt cancellation and smooth progress.
 const CHUNK: u64 = 4096;
-
-/// Light-selection table: cumulative luminance of the lights' power, dark lights left out.
-struct LightPicker {
-    cdf: Vec<f32>,
-    total: f32,
-}
-
-impl LightPicker {
-    fn new(lights: &[Light], dark: &[u32]) -> LightPicker {
-        let mut cdf = Vec::with_capacity(lights.len());
-        let mut acc = 0.0;
-        for (i, l) in lights.iter().enumerate() {
-            if !dark.contains(&(i as u32)) {
-                acc += luminance(l.power()).max(0.0);
-            }
-            cdf.push(acc);
-        }
-        LightPicker { cdf, total: acc }
-    }
-
-    /// The light for `u` in [0, 1) and its selection probability.
-    fn pick(&self, u: f32) -> (usize, f32) {
-        let x = u * self.total;
-        // x can round up to the total: then the last light with any power (never one with
-        // none, whose probability 0 would divide a photon's flux).
-        let i = self.cdf.partition_point(|&c| c <= x);
-        let i = if i < self.cdf.len() {
-            i
-        } else {
-            self.cdf.partition_point(|&c| c < self.total)
-        };
-        let prev = if i == 0 { 0.0 } else { self.cdf[i - 1] };
-        (i, (self.cdf[i] - prev) / self.total)
-    }
-}
 
 /// Trace `emitted` photons for one map. Photon i uses random stream (seed, map, i) only, so
 /// the result is the same whatever the thread count.
@@ -156,36 +99,29 @@ fn trace(
         Target::Global(_) => Stream::GlobalPhotons,
         Target::Caustic => Stream::CausticPhotons,
     };
+    let setup = PathSetup {
+        scene,
+        picker: &picker,
+        target,
+        max_depth,
+        aim,
+    };
     let chunks = emitted.div_ceil(CHUNK);
     let parts: Vec<Vec<Photon>> = (0..chunks)
         .into_par_iter()
         .map(|c| {
             control.check()?;
-            // Room for two stored photons per path, so that a chunk of the global map seldom
-            // regrows; maps of at most one a path (blind caustic paths mostly store none)
-            // grow on demand.
-            let mut out = if target.one_per_path() {
-                Vec::new()
-            } else {
-                Vec::with_capacity(2 * CHUNK as usize)
-            };
-            let end = ((c + 1) * CHUNK).min(emitted);
-            for i in c * CHUNK..end {
-                let mut s = Sampler::new(seed, stream, i);
+            let (start, end) = (c * CHUNK, ((c + 1) * CHUNK).min(emitted));
+            let path = |i: u64, into: &mut PhotonPath| {
                 // Global-map paths are picked to carry irradiance points by a hash of their
                 // index: a thinning independent of where their photons land.
                 let irradiance_point = matches!(target, Target::Global(_))
                     && splitmix64(i ^ splitmix64(seed)).is_multiple_of(IRRADIANCE_STRIDE);
-                let path = PathSetup {
-                    picker: &picker,
-                    target,
-                    max_depth,
-                    irradiance_point,
-                    aim,
-                };
-                trace_one(scene, &path, &mut s, &mut out);
-            }
-            tracker.advance(end - c * CHUNK);
+                let s = Sampler::new(seed, stream, i);
+                PhotonPath::emit(&setup, s, irradiance_point, (i - start) as u32, into)
+            };
+            let out = trace_chunk(&setup, start..end, path);
+            tracker.advance(end - start);
             Ok(out)
         })
         .collect::<Result<_, Cancelled>>()?;
@@ -205,6 +141,77 @@ fn trace(
     })
 }
 
+/// The photons of paths `range`, in path order, each path's in the order stored. Four
+/// paths are in flight at a time and their next hits found together
+/// ([`Scene::closest4`]); a lane whose path ends takes up the next one. Against one path
+/// at a time: see docs/performance.md.
+fn trace_chunk(
+    setup: &PathSetup,
+    range: std::ops::Range<u64>,
+    mut path: impl FnMut(u64, &mut PhotonPath) -> bool,
+) -> Vec<Photon> {
+    let paths = (range.end - range.start) as usize;
+    // Room for two stored photons per path, so that a chunk of the global map seldom
+    // regrows; maps of at most one a path (blind caustic paths mostly store none) grow on
+    // demand.
+    let room = if setup.target.one_per_path() {
+        0
+    } else {
+        2 * paths
+    };
+    let mut out = Vec::with_capacity(room);
+    let mut slots: Vec<u32> = Vec::with_capacity(room);
+    let mut lanes: [PhotonPath; 4] = std::array::from_fn(|_| PhotonPath::idle());
+    let mut live = [false; 4];
+    let mut next = range.start;
+    loop {
+        for (lane, live) in lanes.iter_mut().zip(&mut live) {
+            while !*live && next < range.end {
+                *live = path(next, lane);
+                next += 1;
+            }
+        }
+        if live == [false; 4] {
+            break;
+        }
+        let rays = std::array::from_fn(|l| live[l].then_some(&lanes[l].ray));
+        let hits = setup.scene.closest4(rays);
+        for l in 0..4 {
+            if !live[l] {
+                continue;
+            }
+            let p = &mut lanes[l];
+            let stored = out.len();
+            live[l] = p.interact(setup, hits[l], &mut out);
+            if out.len() > stored {
+                slots.push(p.slot);
+            }
+        }
+    }
+    in_path_order(out, &slots, paths)
+}
+
+/// `photons`, stored by interleaved paths, stably reordered by their paths' `slots` (a
+/// counting sort): the order one path at a time would have stored them in.
+fn in_path_order(photons: Vec<Photon>, slots: &[u32], paths: usize) -> Vec<Photon> {
+    if slots.is_sorted() {
+        return photons;
+    }
+    let mut at = vec![0u32; paths + 1];
+    for &s in slots {
+        at[s as usize + 1] += 1;
+    }
+    for i in 1..=paths {
+        at[i] += at[i - 1];
+    }
+    let mut sorted = photons.clone();
+    for (p, &s) in photons.iter().zip(slots) {
+        sorted[at[s as usize] as usize] = *p;
+        at[s as usize] += 1;
+    }
+    sorted
+}
+
 /// Aimed caustic photons carry a fraction of a blind photon's flux (the solid angle of their
 /// targets): rescale the stored powers to a mean luminance of 1 and the unit to match, so
 /// that they stay O(1), as the estimators' fixed-point sums expect. The product is unchanged.
@@ -222,110 +229,6 @@ fn renormalise(photons: &mut [Photon], unit: f32) -> f32 {
         p.power = p.power.map(|c| c * f);
     }
     unit * mean as f32
-}
-
-/// What every photon path of one tracing run shares, and this path's irradiance-point mark.
-struct PathSetup<'a> {
-    picker: &'a LightPicker,
-    target: Target,
-    max_depth: u32,
-    irradiance_point: bool,
-    /// Aim the photon at the caustic targets.
-    aim: bool,
-}
-
-fn trace_one(scene: &Scene, path: &PathSetup, s: &mut Sampler, out: &mut Vec<Photon>) {
-    let PathSetup {
-        picker,
-        target,
-        max_depth,
-        irradiance_point,
-        aim,
-    } = *path;
-    let (li, p_light) = picker.pick(s.next_f32());
-    let (u_pos, u_dir) = (s.next_2d(), s.next_2d());
-    let light = &scene.lights[li];
-    let em = if aim {
-        // Aimed at the specular objects (photon/targets.rs), weighted by the light's own
-        // direction pdf over the aiming pdf.
-        let origin = light.emission_origin(u_pos);
-        let td = scene
-            .caustic_targets
-            .sample(origin.sp.p, s.next_f32(), u_dir);
-        let weight = origin.direction_pdf(td.dir) / td.pdf;
-        if !(weight > 0.0) || !weight.is_finite() {
-            return;
-        }
-        crate::render::light::Emission {
-            ray: origin.ray(td.dir),
-            flux: light.power() * weight,
-        }
-    } else {
-        let em = light.sample_emission(u_pos, u_dir);
-        if target == Target::Caustic && !scene.caustic_targets.may_reach(em.ray.o, em.ray.d) {
-            return; // it would end unstored at its first hit (see `may_reach`)
-        }
-        em
-    };
-    // Flux relative to the map's unit, total / emitted: luminance 1 when it leaves the light
-    // (on average, for aimed caustic photons).
-    let mut power = em.flux / (p_light * picker.total);
-    let mut ray = em.ray;
-    let mut non_specular_before = false;
-    for depth in 0..max_depth {
-        let Some(hit) = scene.intersect(&ray) else {
-            return;
-        };
-        let Surface::Material(mi) = scene.surface(hit.point.prim) else {
-            return; // lights absorb
-        };
-        let m = &scene.materials[mi as usize];
-        let wo = -ray.d;
-        if !m.is_specular() {
-            let class = if depth == 0 {
-                PathClass::Direct
-            } else if non_specular_before {
-                PathClass::Indirect
-            } else {
-                PathClass::Caustic
-            };
-            let n = hit.point.n;
-            let n_side = if n.dot(wo) < 0.0 { -n } else { n };
-            let keep = match target {
-                Target::Global(store) => store.keeps(class),
-                Target::Caustic => class == PathClass::Caustic,
-            };
-            if keep {
-                out.push(Photon::new(
-                    hit.point.p,
-                    power,
-                    n_side,
-                    class,
-                    irradiance_point,
-                ));
-            }
-            if target.one_per_path() {
-                return;
-            }
-        }
-        let Some(bs) = m.sample(
-            wo,
-            hit.point.n,
-            s.next_f32(),
-            s.next_2d(),
-            Transport::Importance,
-        ) else {
-            return;
-        };
-        // Russian roulette by the sampled albedo keeps photon power about constant.
-        let survive = max_component(bs.weight).min(1.0);
-        if !(survive > 0.0) || s.next_f32() >= survive {
-            return;
-        }
-        power *= bs.weight / survive;
-        non_specular_before |= !bs.specular;
-        ray = spawn_ray(&hit.point, bs.wi);
-    }
 }
 
 /// Trace and build the photon maps for `params` (a map with 0 photons is not built).
@@ -386,4 +289,33 @@ pub fn build_photon_maps(
         trace_seconds,
         build_seconds: t0.elapsed().as_secs_f64() - trace_seconds,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3A;
+
+    use super::*;
+    use crate::render::math::Rgb;
+
+    /// Photons stored by interleaved paths come back grouped by path, in path order, each
+    /// path's own in the order it stored them.
+    #[test]
+    fn photons_return_to_path_order() {
+        let photon = |x: f32| {
+            Photon::new(
+                Vec3A::new(x, 0.0, 0.0),
+                Rgb::ONE,
+                Vec3A::Z,
+                PathClass::Indirect,
+                false,
+            )
+        };
+        let xs = [10.0, 0.0, 11.0, 20.0, 1.0, 12.0];
+        let slots = [1, 0, 1, 2, 0, 1];
+        let photons: Vec<Photon> = xs.iter().map(|&x| photon(x)).collect();
+        let sorted = in_path_order(photons, &slots, 4);
+        let got: Vec<f32> = sorted.iter().map(|p| p.pos[0]).collect();
+        assert_eq!(got, [0.0, 1.0, 10.0, 11.0, 12.0, 20.0]);
+    }
 }

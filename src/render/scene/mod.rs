@@ -17,7 +17,7 @@ use serde_json::Value;
 pub use format::CameraDef;
 
 use crate::render::camera::Camera;
-use crate::render::geometry::{Accel, Hit, PrimId, Primitive, Ray, Shape, Surface};
+use crate::render::geometry::{Accel, Hit, PrimHit, PrimId, Primitive, Ray, Shape, Surface};
 use crate::render::light::Light;
 use crate::render::material::Material;
 use crate::render::math::Rgb;
@@ -367,6 +367,18 @@ impl Scene {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         self.accel.intersect(ray)
+    }
+
+    /// The primitives up to four rays meet first (None: an idle lane), for
+    /// [`Scene::hit_point`]: [`Scene::intersect`] four at a time.
+    #[inline]
+    pub fn closest4(&self, rays: [Option<&Ray>; 4]) -> [Option<PrimHit>; 4] {
+        self.accel.closest4(rays)
+    }
+
+    #[inline]
+    pub fn hit_point(&self, ray: &Ray, c: PrimHit) -> Hit {
+        self.accel.hit_point(ray, c)
     }
 
     #[inline]
