@@ -3,35 +3,28 @@
 //! large primitives culls almost nothing; testing all of them in SIMD lanes is about three
 //! times fewer instructions than one by one (measured with callgrind on photon tracing).
 //!
-//! Same arithmetic as `shapes.rs` (quads by plane and two precomputed dot products,
-//! spheres by the Haines et al. discriminant), lane by lane. Padding lanes never hit.
+//! Same arithmetic as `shapes.rs`, lane by lane (the tests themselves are in `lanes.rs`,
+//! shared with `packet.rs`). Padding lanes never hit.
 
 use glam::{Vec3A, Vec4};
 
+use super::lanes::{QuadLanes, RayLanes, SphereLanes, prim_f32, quad_hits, sphere_hits, splat3};
 use super::packet::{Rays4, Splats, lane_prim};
 use super::shapes::{Shape, ShapeHit};
 use super::{NO_PRIM, PrimId, Ray};
 
-/// Four quads, component by component.
+/// Four quads, component by component (padding lanes: id -1, zero normal).
 #[derive(Clone, Copy)]
 struct Quads4 {
     id: [PrimId; 4],
-    /// The ids as floats (exact below 2^24; padding -1), compared in SIMD.
-    idf: Vec4,
-    corner: [Vec4; 3],
-    n: [Vec4; 3],
-    su: [Vec4; 3],
-    sv: [Vec4; 3],
-    plane: Vec4,
+    lanes: QuadLanes,
 }
 
-/// Four spheres, component by component.
+/// Four spheres, component by component (padding lanes: id -1, radius 0).
 #[derive(Clone, Copy)]
 struct Spheres4 {
     id: [PrimId; 4],
-    idf: Vec4,
-    center: [Vec4; 3],
-    radius: Vec4,
+    lanes: SphereLanes,
 }
 
 pub struct Flat {
@@ -54,25 +47,9 @@ fn lanes<const N: usize>(v: [Vec3A; N]) -> [Vec4; 3] {
     [c(0), c(1), c(2)]
 }
 
-#[inline]
-pub(super) fn dot3(a: &[Vec4; 3], b: [Vec4; 3]) -> Vec4 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-#[inline]
-pub(super) fn splat3(v: Vec3A) -> [Vec4; 3] {
-    [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)]
-}
-
 /// Lane ids as floats; padding lanes are -1.
 fn ids_f32(id: &[PrimId; 4]) -> Vec4 {
     Vec4::from_array(id.map(|i| if i == NO_PRIM { -1.0 } else { i as f32 }))
-}
-
-/// A ray's origin or target primitive as a float that matches no padding lane.
-#[inline]
-pub(super) fn prim_f32(id: PrimId) -> f32 {
-    if id == NO_PRIM { -2.0 } else { id as f32 }
 }
 
 impl Flat {
@@ -116,12 +93,14 @@ impl Flat {
                 }
                 Quads4 {
                     id,
-                    idf: ids_f32(&id),
-                    corner: lanes(corner),
-                    n: lanes(n),
-                    su: lanes(su),
-                    sv: lanes(sv),
-                    plane: Vec4::from_array(plane),
+                    lanes: QuadLanes {
+                        idf: ids_f32(&id),
+                        corner: lanes(corner),
+                        n: lanes(n),
+                        su: lanes(su),
+                        sv: lanes(sv),
+                        plane: Vec4::from_array(plane),
+                    },
                 }
             })
             .collect();
@@ -145,9 +124,11 @@ impl Flat {
                 }
                 Spheres4 {
                     id,
-                    idf: ids_f32(&id),
-                    center: lanes(center),
-                    radius: Vec4::from_array(radius),
+                    lanes: SphereLanes {
+                        idf: ids_f32(&id),
+                        center: lanes(center),
+                        radius: Vec4::from_array(radius),
+                    },
                 }
             })
             .collect();
@@ -201,31 +182,16 @@ impl Flat {
     fn search<const ANY: bool>(&self, ray: &Ray) -> Option<(PrimId, ShapeHit)> {
         let mut best: Option<(PrimId, ShapeHit)> = None;
         let mut t_max = ray.t_max;
-        let o = splat3(ray.o);
-        let d = splat3(ray.d);
-        let origin = Vec4::splat(prim_f32(ray.origin_prim));
-        let target = Vec4::splat(prim_f32(ray.target_prim));
+        let r = RayLanes {
+            o: splat3(ray.o),
+            d: splat3(ray.d),
+            origin: Vec4::splat(prim_f32(ray.origin_prim)),
+            target: Vec4::splat(prim_f32(ray.target_prim)),
+        };
         let padding = Vec4::splat(-1.0);
         for q in &self.quads {
-            let denom = dot3(&q.n, d);
-            let t = (q.plane - dot3(&q.n, o)) / denom;
-            let rel = [
-                o[0] + t * d[0] - q.corner[0],
-                o[1] + t * d[1] - q.corner[1],
-                o[2] + t * d[2] - q.corner[2],
-            ];
-            let s = dot3(&q.su, rel);
-            let v = dot3(&q.sv, rel);
-            let (zero, one) = (Vec4::ZERO, Vec4::ONE);
-            let hit = t.cmpgt(zero)
-                & t.cmplt(Vec4::splat(t_max))
-                & s.cmpge(zero)
-                & s.cmple(one)
-                & v.cmpge(zero)
-                & v.cmple(one)
-                & q.idf.cmpne(origin)
-                & q.idf.cmpne(target)
-                & q.idf.cmpne(padding);
+            let (hit, t, s, v) = quad_hits(&r, &q.lanes, Vec4::splat(t_max));
+            let hit = hit & q.lanes.idf.cmpne(padding);
             if hit.any() {
                 let tt = Vec4::select(hit, t, Vec4::INFINITY);
                 let lane = argmin(tt);
@@ -243,36 +209,10 @@ impl Flat {
             }
         }
         for sp in &self.spheres {
-            let f = [
-                o[0] - sp.center[0],
-                o[1] - sp.center[1],
-                o[2] - sp.center[2],
-            ];
-            let b = dot3(&f, d);
-            let r2 = sp.radius * sp.radius;
-            let c = dot3(&f, f) - r2;
-            let from_me = sp.idf.cmpeq(origin);
-            let perp = [f[0] - b * d[0], f[1] - b * d[1], f[2] - b * d[2]];
-            let l2 = dot3(&perp, perp);
-            let l = l2.max(Vec4::ZERO).sqrt();
-            let disc = (sp.radius - l) * (sp.radius + l);
-            // Leaving the sphere it starts on, or outside and moving away: no hit.
-            let away = (from_me | c.cmpgt(Vec4::ZERO)) & b.cmpge(Vec4::ZERO);
-            let candidate = !away & l2.cmple(r2) & disc.cmpge(Vec4::ZERO);
-            if !candidate.any() {
+            let Some((hit, t)) = sphere_hits(&r, &sp.lanes, Vec4::splat(t_max)) else {
                 continue;
-            }
-            let q = -b - disc.max(Vec4::ZERO).sqrt().copysign(b);
-            let a = c / q;
-            let (t0, t1) = (a.min(q), a.max(q));
-            let near_ok = t0.cmpgt(Vec4::ZERO) & !from_me;
-            let t = Vec4::select(near_ok, t0, t1);
-            let hit = candidate
-                & q.cmpne(Vec4::ZERO)
-                & t.cmpgt(Vec4::ZERO)
-                & t.cmplt(Vec4::splat(t_max))
-                & sp.idf.cmpne(target)
-                & sp.idf.cmpne(padding);
+            };
+            let hit = hit & sp.lanes.idf.cmpne(padding);
             if hit.any() {
                 let tt = Vec4::select(hit, t, Vec4::INFINITY);
                 let lane = argmin(tt);

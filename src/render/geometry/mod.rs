@@ -10,6 +10,7 @@
 
 mod accel;
 mod flat;
+mod lanes;
 mod packet;
 mod shapes;
 mod triangle_f64;
