@@ -4,12 +4,12 @@
 //! four paths in flight and finds their hits together; a path only ever sees its own hits
 //! and its own random stream, so what it stores is the same however it is scheduled.
 
-use super::{PathClass, Photon, PhotonStore};
+use super::{IRRADIANCE_STRIDE, PathClass, Photon, PhotonStore};
 use crate::render::geometry::{PrimHit, Ray, Surface, spawn_ray};
 use crate::render::light::{Emission, Light};
 use crate::render::material::Transport;
 use crate::render::math::{Rgb, luminance, max_component};
-use crate::render::sampling::Sampler;
+use crate::render::sampling::{Sampler, Stream, splitmix64};
 use crate::render::scene::Scene;
 
 /// Which map a tracing run fills.
@@ -82,6 +82,9 @@ pub(super) struct PathSetup<'a> {
     pub(super) max_depth: u32,
     /// Aim the photon at the caustic targets.
     pub(super) aim: bool,
+    /// Path i draws from random stream (seed, stream, i) alone.
+    pub(super) seed: u64,
+    pub(super) stream: Stream,
 }
 
 /// A photon in flight: the ray it travels next and what it carries.
@@ -93,7 +96,7 @@ pub(super) struct PhotonPath {
     /// Surface interactions so far.
     depth: u32,
     non_specular_before: bool,
-    /// Global-map paths picked to carry irradiance points (see `trace.rs`).
+    /// Global-map paths picked to carry irradiance points (see `emit`).
     irradiance_point: bool,
     sampler: Sampler,
     /// The path's place in its tracing chunk: its photons are put back in path order.
@@ -114,23 +117,28 @@ impl PhotonPath {
         }
     }
 
-    /// A photon leaving a light, written into `into`; false (and `into` untouched) if it
-    /// would end before its first hit: no interaction allowed, a zero weight, or (blind
-    /// caustic photons) a direction that reaches no specular object.
-    pub(super) fn emit(
-        setup: &PathSetup,
-        mut s: Sampler,
-        irradiance_point: bool,
-        slot: u32,
-        into: &mut PhotonPath,
-    ) -> bool {
+    /// Path `index` leaving its light, written into `into` with `slot`, its place in its
+    /// tracing chunk; false (and `into` untouched) if it would end before its first hit: no
+    /// interaction allowed, a zero weight, or (blind caustic photons) a direction that
+    /// reaches no specular object.
+    pub(super) fn emit(setup: &PathSetup, index: u64, slot: u32, into: &mut PhotonPath) -> bool {
         let PathSetup {
             scene,
             picker,
             target,
             max_depth,
             aim,
+            seed,
+            stream,
         } = *setup;
+        if max_depth == 0 {
+            return false;
+        }
+        let mut s = Sampler::new(seed, stream, index);
+        // Global-map paths are picked to carry irradiance points by a hash of their index: a
+        // thinning independent of where their photons land.
+        let irradiance_point = matches!(target, Target::Global(_))
+            && splitmix64(index ^ splitmix64(seed)).is_multiple_of(IRRADIANCE_STRIDE);
         let (li, p_light) = picker.pick(s.next_f32());
         let (u_pos, u_dir) = (s.next_2d(), s.next_2d());
         let light = &scene.lights[li];
@@ -156,9 +164,6 @@ impl PhotonPath {
             }
             em
         };
-        if max_depth == 0 {
-            return false;
-        }
         *into = PhotonPath {
             ray: em.ray,
             power: em.flux / (p_light * picker.total),

@@ -1,15 +1,16 @@
-//! Photon tracing (Jensen 2001, chapter 5): emission from the lights in proportion to their
-//! power, scattering by the BSDFs with Russian roulette, storage at non-specular surfaces.
+//! Photon tracing runs (Jensen 2001, chapter 5): the photons of a map traced in parallel
+//! chunks of paths, four paths in flight per chunk, and the maps built from them. A single
+//! path (emission, storage, scattering) is `path.rs`.
 
 use std::time::Instant;
 
 use rayon::prelude::*;
 
 use super::path::{LightPicker, PathSetup, PhotonPath, Target};
-use super::{IRRADIANCE_STRIDE, PathClass, Photon, PhotonMap, PhotonMaps};
+use super::{PathClass, Photon, PhotonMap, PhotonMaps};
 use crate::render::control::{Cancelled, Control, Phase};
 use crate::render::math::luminance_f64;
-use crate::render::sampling::{Sampler, Stream, splitmix64};
+use crate::render::sampling::Stream;
 use crate::render::scene::Scene;
 
 /// Which first-hit photons the global map keeps (the seed's tri-state).
@@ -105,6 +106,8 @@ fn trace(
         target,
         max_depth,
         aim,
+        seed,
+        stream,
     };
     let chunks = emitted.div_ceil(CHUNK);
     let parts: Vec<Vec<Photon>> = (0..chunks)
@@ -112,15 +115,7 @@ fn trace(
         .map(|c| {
             control.check()?;
             let (start, end) = (c * CHUNK, ((c + 1) * CHUNK).min(emitted));
-            let path = |i: u64, into: &mut PhotonPath| {
-                // Global-map paths are picked to carry irradiance points by a hash of their
-                // index: a thinning independent of where their photons land.
-                let irradiance_point = matches!(target, Target::Global(_))
-                    && splitmix64(i ^ splitmix64(seed)).is_multiple_of(IRRADIANCE_STRIDE);
-                let s = Sampler::new(seed, stream, i);
-                PhotonPath::emit(&setup, s, irradiance_point, (i - start) as u32, into)
-            };
-            let out = trace_chunk(&setup, start..end, path);
+            let out = trace_chunk(&setup, start..end);
             tracker.advance(end - start);
             Ok(out)
         })
@@ -145,11 +140,7 @@ fn trace(
 /// paths are in flight at a time and their next hits found together
 /// ([`Scene::closest4`]); a lane whose path ends takes up the next one. Against one path
 /// at a time: see docs/performance.md.
-fn trace_chunk(
-    setup: &PathSetup,
-    range: std::ops::Range<u64>,
-    mut path: impl FnMut(u64, &mut PhotonPath) -> bool,
-) -> Vec<Photon> {
+fn trace_chunk(setup: &PathSetup, range: std::ops::Range<u64>) -> Vec<Photon> {
     let paths = (range.end - range.start) as usize;
     // Room for two stored photons per path, so that a chunk of the global map seldom
     // regrows; maps of at most one a path (blind caustic paths mostly store none) grow on
@@ -167,7 +158,8 @@ fn trace_chunk(
     loop {
         for (lane, live) in lanes.iter_mut().zip(&mut live) {
             while !*live && next < range.end {
-                *live = path(next, lane);
+                let slot = (next - range.start) as u32;
+                *live = PhotonPath::emit(setup, next, slot, lane);
                 next += 1;
             }
         }

@@ -376,6 +376,7 @@ impl Scene {
         self.accel.closest4(rays)
     }
 
+    /// The full hit (surface point with its error bound) of `ray`'s closest primitive `c`.
     #[inline]
     pub fn hit_point(&self, ray: &Ray, c: PrimHit) -> Hit {
         self.accel.hit_point(ray, c)
