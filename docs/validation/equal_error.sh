@@ -30,6 +30,7 @@ while read -r label args; do
   record photonbox "$label $args" "$t" "$OUT/pb_$label.exr"
 done <<'CONFIGS'
 g0-50k --photons 50000 --caustic-photons 50000 --gather-rays 0 --spp 1
+g0-100k --photons 100000 --caustic-photons 100000 --gather-rays 0 --spp 1
 g0-200k --photons 200000 --caustic-photons 200000 --gather-rays 0 --spp 2
 g2-100k --photons 100000 --caustic-photons 100000 --gather-rays 2 --spp 2
 g4-200k --photons 200000 --caustic-photons 200000 --gather-rays 4 --spp 4

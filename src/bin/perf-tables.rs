@@ -114,6 +114,7 @@ fn main() {
     });
     let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let threads = rayon::current_num_threads();
+    println!("Host: {}.", host_cpu());
     println!(
         "Scene {}, 512x512, 1 spp, photon store indirect, no final gathering, global and caustic maps of n \
          emitted photons each; {threads} threads; median of {} runs.\n",
@@ -154,7 +155,9 @@ fn main() {
     }
 
     if !args.no_ppm {
-        ppm_pass(&scene, args.runs);
+        // Blind caustic photons are the seed's workload; aimed ones the default since issue 5.
+        ppm_pass(&scene, args.runs, false);
+        ppm_pass(&scene, args.runs, true);
     }
     if !args.no_effects {
         effects_cost(args.runs);
@@ -202,16 +205,41 @@ fn main() {
     }
 }
 
+/// The CPU these figures were measured on, as /proc/cpuinfo names it (Linux): the seed's
+/// ratios depend on the host, and the same commit has measured twice as fast on one
+/// virtual machine as on another (docs/performance.md), so every table says which it was.
+fn host_cpu() -> String {
+    let Ok(info) = std::fs::read_to_string("/proc/cpuinfo") else {
+        return "CPU unknown (no /proc/cpuinfo)".to_string();
+    };
+    // The first processor's block; the virtual machines here report only "AMD EPYC" as the
+    // model name, so family and model (the microarchitecture) are printed beside it.
+    let field = |key: &str| {
+        info.lines()
+            .find(|l| l.split(':').next().is_some_and(|k| k.trim() == key))
+            .and_then(|l| l.split_once(':'))
+            .map_or("?", |(_, v)| v.trim())
+    };
+    format!(
+        "{} (cpu family {}, model {}), {} logical CPUs",
+        field("model name"),
+        field("cpu family"),
+        field("model"),
+        std::thread::available_parallelism().map_or(0, |n| n.get()),
+    )
+}
+
 /// One progressive pass (issue 4's target: under 0.6 s): `runs` passes of one ppm render,
-/// 100k global + 100k caustic photons each, 512x512, 1 spp, automatic radius (ppm's k).
-fn ppm_pass(scene: &Scene, runs: usize) {
+/// 100k global + 100k caustic photons each, 512x512, 1 spp, automatic radius (ppm's k),
+/// caustic photons emitted blindly or aimed at the specular objects.
+fn ppm_pass(scene: &Scene, runs: usize, aim_caustics: bool) {
     let params = RenderParams {
         photons: 100_000,
         caustic_photons: 100_000,
         iterations: runs as u32,
         width: Some(512),
         height: Some(512),
-        aim_caustics: false,
+        aim_caustics,
         ..RenderParams::ppm_defaults()
     };
     let opts = ppm::PpmOptions::new(ppm::Stop::after(params.iterations), String::new());
@@ -222,8 +250,10 @@ fn ppm_pass(scene: &Scene, runs: usize) {
     let h = &out.state.history;
     let pass = |f: fn(&ppm::PassStats) -> f64| median(h.iter().map(f).collect());
     println!(
-        "\n- ppm pass, 100k + 100k photons, 512x512, 1 spp, k = {} (auto radius): median {:.1} ms \
-         (trace {:.1} + build {:.1} + camera {:.1}) over {} passes; first pass {:.1} ms",
+        "\n- ppm pass, 100k + 100k photons ({} caustics), 512x512, 1 spp, k = {} (auto radius): \
+         median {:.1} ms (trace {:.1} + build {:.1} + camera {:.1}) over {} passes; first pass \
+         {:.1} ms",
+        if aim_caustics { "aimed" } else { "blind" },
         params.k,
         pass(|p| p.photon_trace + p.build_maps + p.render) * 1e3,
         pass(|p| p.photon_trace) * 1e3,

@@ -85,7 +85,7 @@ pub fn uniform_sphere(u: Vec2) -> Vec3A {
 /// pdf cos(theta)/pi. The disk point comes from the polar map (r = sqrt(u.x), phi = 2 pi
 /// u.y), not Shirley and Chiu's concentric one: it has no branch and no division, and for
 /// independent samples (the only kind this renderer draws) the two are equivalent. Photon tracing at
-/// 100k + 100k photons on scene (1): 51 -> 46 ms (docs/performance.md).
+/// 100k + 100k photons on scene (1): 51 -> 46 ms (docs/performance-history.md).
 #[inline]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3A {
     let r = u.x.sqrt();

@@ -139,7 +139,7 @@ fn trace(
 /// The photons of paths `range`, in path order, each path's in the order stored. Four
 /// paths are in flight at a time and their next hits found together
 /// ([`Scene::closest4`]); a lane whose path ends takes up the next one. Against one path
-/// at a time: see docs/performance.md.
+/// at a time: see docs/performance-history.md ("Fifth session").
 fn trace_chunk(setup: &PathSetup, range: std::ops::Range<u64>) -> Vec<Photon> {
     let paths = (range.end - range.start) as usize;
     // Room for two stored photons per path, so that a chunk of the global map seldom

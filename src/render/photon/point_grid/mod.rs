@@ -6,7 +6,7 @@
 //! The bound's ball meets a handful of cells, read from a table of cell starts in one step
 //! each, where a kd-tree descends from its root (about 14 levels and 2 leaves of 16 on scene
 //! 1's irradiance points, with the same hint); the build is a counting sort instead of a
-//! tree's balancing. Measured in docs/performance.md.
+//! tree's balancing. Measured in docs/performance-history.md ("Third session").
 //!
 //! Answers are exact: the nearest point passing the filter strictly within the bound, of
 //! equally near ones the lowest grid index; or the k nearest by (distance, input index),
