@@ -1,0 +1,81 @@
+//! The README's two set-up commands are the ones a newcomer can run on a fresh machine:
+//! `cargo run --release -- serve` must reach the server binary (with a second binary in the
+//! package, perf-tables, plain `cargo run` needs `default-run`: without it, cargo stops with
+//! "could not determine which binary to run"), and `.ci/run` runs the README's test command.
+
+use std::path::Path;
+use std::process::Command;
+
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+
+/// The indented command lines of README.md's "Set up on a fresh machine" section.
+fn setup_commands() -> Vec<String> {
+    let readme = std::fs::read_to_string(Path::new(ROOT).join("README.md")).unwrap();
+    let section = readme
+        .split("\n## ")
+        .find(|s| s.starts_with("Set up on a fresh machine"))
+        .expect("README.md has a 'Set up on a fresh machine' section");
+    // Up to the first prose paragraph after the commands.
+    section
+        .lines()
+        .skip(1)
+        .take_while(|l| l.is_empty() || l.starts_with("    ") || l.ends_with(':'))
+        .filter(|l| l.starts_with("    "))
+        .map(|l| l.trim().to_string())
+        .collect()
+}
+
+#[test]
+fn readme_gives_exactly_the_server_and_test_commands() {
+    assert_eq!(
+        setup_commands(),
+        ["cargo run --release -- serve", "cargo test"],
+        "README.md's set-up section"
+    );
+}
+
+#[test]
+fn cargo_run_without_bin_runs_the_server_binary() {
+    // `cargo metadata` reads the manifest only: no build, no network.
+    let out = Command::new(env!("CARGO"))
+        .args([
+            "metadata",
+            "--no-deps",
+            "--offline",
+            "--format-version",
+            "1",
+        ])
+        .current_dir(ROOT)
+        .output()
+        .expect("cargo metadata runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let package = &meta["packages"][0];
+    let bins: Vec<&str> = package["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|t| t["kind"].as_array().unwrap().iter().any(|k| k == "bin"))
+        .map(|t| t["name"].as_str().unwrap())
+        .collect();
+    assert!(bins.contains(&"photonbox"), "binaries: {bins:?}");
+    if bins.len() > 1 {
+        assert_eq!(
+            package["default_run"], "photonbox",
+            "with binaries {bins:?}, `cargo run -- serve` needs default-run = \"photonbox\""
+        );
+    }
+}
+
+#[test]
+fn ci_runs_the_readme_test_command() {
+    let ci = std::fs::read_to_string(Path::new(ROOT).join(".ci/run")).unwrap();
+    assert!(
+        ci.lines().any(|l| l.trim() == "cargo test"),
+        ".ci/run runs `cargo test`"
+    );
+}
