@@ -3,9 +3,9 @@
 # tables of docs/accuracy.md.
 #   docs/accuracy/regen.sh [REF_DIR]
 # REF_DIR holds the Mitsuba 3 references of docs/validation/references.sh (default
-# target/refs; about 30 minutes to make). Scenes without one (phong_spheres: Mitsuba has no
+# target/refs; about 13 minutes to make). Scenes without one (phong_spheres: Mitsuba has no
 # Phong) are measured against a long ppm reference that `sweep` renders itself.
-# About 15 minutes on 2 cores.
+# About 3 minutes on 2 cores.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 REFS="${1:-target/refs}"

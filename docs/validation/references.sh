@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Render the Mitsuba 3 references for docs/validation.md (../shared/refcheck, path tracing).
-#   docs/validation/references.sh [OUT_DIR]      (default target/refs; about 30 minutes on 2 cores)
+#   docs/validation/references.sh [OUT_DIR]      (default target/refs; about 13 minutes on 2 cores)
 # For each scene: two independent references (seeds 1 and 2), their comparison (the
 # reference's own noise floor), and their mean (the reference used).
 set -euo pipefail
