@@ -33,7 +33,7 @@ struct Args {
     /// Skip the photon-throughput measurements.
     #[arg(long)]
     no_throughput: bool,
-    /// Skip the progressive (ppm) pass timing.
+    /// Skip the progressive (ppm) pass timings (blind and aimed caustics).
     #[arg(long)]
     no_ppm: bool,
     /// Skip the effects timing (a diffuse-only scene with and without `--no-caustics`).
@@ -216,8 +216,8 @@ fn host_cpu() -> String {
     // model name, so family and model (the microarchitecture) are printed beside it.
     let field = |key: &str| {
         info.lines()
-            .find(|l| l.split(':').next().is_some_and(|k| k.trim() == key))
-            .and_then(|l| l.split_once(':'))
+            .filter_map(|l| l.split_once(':'))
+            .find(|(k, _)| k.trim() == key)
             .map_or("?", |(_, v)| v.trim())
     };
     format!(
