@@ -85,6 +85,24 @@ struct ServeArgs {
     /// Most queued jobs per user (more: 429).
     #[arg(long, default_value_t = LIMITS.max_queued_per_user)]
     max_queued: usize,
+    /// Most work one job may ask for, in ray samples (pixels x spp x (1 + gather rays),
+    /// photons, times the passes); larger jobs are refused with the estimate.
+    #[arg(long, default_value_t = LIMITS.max_work)]
+    max_work: f64,
+    /// Disk one user's uploaded scenes and result images may take (MiB); past it, new jobs
+    /// are refused until some are deleted.
+    #[arg(long, default_value_t = LIMITS.storage_bytes_per_user >> 20)]
+    storage_mb: u64,
+    /// Connections open at once (kept below the descriptor limit; further ones wait).
+    #[arg(long, default_value_t = 4096)]
+    max_connections: usize,
+    /// Seconds a client has to send a request's headers; also how long an idle kept-alive
+    /// connection stays open.
+    #[arg(long, default_value_t = 10.0)]
+    header_timeout: f64,
+    /// Seconds a client has to send a request body.
+    #[arg(long, default_value_t = 60.0)]
+    body_timeout: f64,
 }
 
 /// The server's default limits, shown by `serve --help`.
@@ -131,7 +149,23 @@ fn bad(msg: impl Into<String>) -> anyhow::Error {
     BadInput(msg.into()).into()
 }
 
+/// A positive number of seconds from a flag.
+fn seconds(s: f64, flag: &str) -> anyhow::Result<std::time::Duration> {
+    if !(s.is_finite() && s > 0.0 && s <= 86400.0) {
+        return Err(bad(format!(
+            "{flag} must be a number of seconds in (0, 86400]"
+        )));
+    }
+    Ok(std::time::Duration::from_secs_f64(s))
+}
+
 fn run_serve(a: ServeArgs) -> anyhow::Result<()> {
+    if a.max_connections == 0 {
+        return Err(bad("--max-connections must be at least 1"));
+    }
+    if !(a.max_work.is_finite() && a.max_work > 0.0) {
+        return Err(bad("--max-work must be a positive number"));
+    }
     if a.threads == Some(0) {
         return Err(bad("--threads must be at least 1"));
     }
@@ -162,6 +196,14 @@ fn run_serve(a: ServeArgs) -> anyhow::Result<()> {
             max_triangles: a.max_triangles,
             max_queued_per_user: a.max_queued,
             memory_bytes: a.memory_mb << 20,
+            max_work: a.max_work,
+            storage_bytes_per_user: a.storage_mb << 20,
         },
+        conn: photonbox::server::ConnLimits {
+            max_connections: a.max_connections,
+            header_timeout: seconds(a.header_timeout, "--header-timeout")?,
+            drain: std::time::Duration::from_secs(10),
+        },
+        body_timeout: seconds(a.body_timeout, "--body-timeout")?,
     })
 }

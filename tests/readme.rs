@@ -1,7 +1,8 @@
 //! The README's two set-up commands are the ones a newcomer can run on a fresh machine:
 //! `cargo run --release -- serve` must reach the server binary (with a second binary in the
 //! package, perf-tables, plain `cargo run` needs `default-run`: without it, cargo stops with
-//! "could not determine which binary to run"), and `.ci/run` runs the README's test command.
+//! "could not determine which binary to run"), `.ci/run` runs the README's test command, and
+//! that command installs what the browser tests need and runs `cargo test`.
 
 use std::path::Path;
 use std::process::Command;
@@ -29,7 +30,7 @@ fn setup_commands() -> Vec<String> {
 fn readme_gives_exactly_the_server_and_test_commands() {
     assert_eq!(
         setup_commands(),
-        ["cargo run --release -- serve", "cargo test"],
+        ["cargo run --release -- serve", "tests/run.sh"],
         "README.md's set-up section"
     );
 }
@@ -79,5 +80,24 @@ fn ci_runs_the_readme_test_command() {
     assert!(
         ci.lines().any(|l| l.trim() == test_command),
         ".ci/run runs the README's test command `{test_command}`"
+    );
+}
+
+#[test]
+fn the_test_command_installs_the_browsers_and_runs_every_test() {
+    let script = std::fs::read_to_string(Path::new(ROOT).join("tests/run.sh")).unwrap();
+    for needed in [
+        "chromium-driver",
+        "firefox-esr",
+        "geckodriver",
+        "apt_get install",
+    ] {
+        assert!(script.contains(needed), "tests/run.sh installs {needed}");
+    }
+    assert!(
+        script
+            .lines()
+            .any(|l| l.trim().starts_with("cargo test --no-fail-fast")),
+        "tests/run.sh runs cargo test over every test binary"
     );
 }

@@ -30,7 +30,8 @@ export async function refreshGallery() {
   } catch (_) {
     return;
   }
-  jobs.sort((a, b) => b.id - a.id);
+  // Ids are random: newest first by creation time.
+  jobs.sort((a, b) => b.created - a.created || b.id - a.id);
   state.jobs = jobs;
   renderGallery();
   fillReferences();

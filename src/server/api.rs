@@ -5,9 +5,9 @@ use std::time::Duration;
 
 use axum::Json;
 use axum::Router;
-use axum::body::Bytes;
-use axum::extract::rejection::BytesRejection;
-use axum::extract::{DefaultBodyLimit, Path, State};
+use axum::body::Body;
+use axum::extract::{DefaultBodyLimit, FromRequestParts, Path, Request, State};
+use axum::http::request::Parts;
 use axum::http::{HeaderMap, StatusCode, header};
 use axum::middleware;
 use axum::response::sse::{Event, KeepAlive, Sse};
@@ -15,6 +15,8 @@ use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
 use futures_util::stream::{self, Stream, StreamExt};
 use serde_json::{Value, json};
+use tower::ServiceExt;
+use tower_http::services::ServeFile;
 
 use super::auth::{self, User};
 use super::error::ApiError;
@@ -32,11 +34,15 @@ pub fn router(app: AppRef) -> Router {
         .route("/api/jobs/{id}", get(get_job).delete(delete_job))
         .route(
             "/api/jobs/{id}/image.png",
-            get(|s: State<AppRef>, h: HeaderMap, id: Path<String>| image(s, h, id, "png")),
+            get(|s: State<AppRef>, u: User, id: Path<String>, r: Request| {
+                image(s, u, id, "png", r)
+            }),
         )
         .route(
             "/api/jobs/{id}/image.exr",
-            get(|s: State<AppRef>, h: HeaderMap, id: Path<String>| image(s, h, id, "exr")),
+            get(|s: State<AppRef>, u: User, id: Path<String>, r: Request| {
+                image(s, u, id, "exr", r)
+            }),
         )
         .route("/api/jobs/{id}/events", get(job_events))
         .route("/api/scenes", get(list_scenes))
@@ -104,18 +110,30 @@ async fn web_file(Path(file): Path<String>) -> Result<Response, ApiError> {
         .into_response())
 }
 
-/// The user a request's bearer token belongs to.
-fn authenticate(app: &AppRef, headers: &HeaderMap) -> Result<User, ApiError> {
+/// The user a request's bearer token belongs to (SHA-256 looked up in memory, else in the
+/// store on a blocking thread).
+async fn authenticate(app: &AppRef, headers: &HeaderMap) -> Result<User, ApiError> {
     let hash = auth::token_hash(auth::bearer(headers)?);
     if let Some(u) = app.users.lock().unwrap().get(&hash) {
         return Ok(u.clone());
     }
-    let user = app
-        .store
-        .user_by_token_hash(&hash)?
+    let (app2, hash2) = (app.clone(), hash.clone());
+    let user = blocking(move || Ok(app2.store.user_by_token_hash(&hash2)?))
+        .await?
         .ok_or_else(ApiError::unauthorized)?;
     app.users.lock().unwrap().insert(hash, user.clone());
     Ok(user)
+}
+
+/// The authenticated user, taken from the headers alone: as an extractor it runs before any
+/// body is read, so a request without a valid token is answered 401 without its body being
+/// read (or, with `Expect: 100-continue`, without a `100 Continue`).
+impl FromRequestParts<AppRef> for User {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, app: &AppRef) -> Result<User, ApiError> {
+        authenticate(app, &parts.headers).await
+    }
 }
 
 fn visible(user: &User, row: &JobRow) -> bool {
@@ -176,15 +194,11 @@ fn job_json(
     })
 }
 
-async fn me(State(app): State<AppRef>, headers: HeaderMap) -> Result<Json<Value>, ApiError> {
-    let user = authenticate(&app, &headers)?;
-    Ok(Json(
-        json!({ "id": user.id, "name": user.name, "admin": user.admin }),
-    ))
+async fn me(user: User) -> Json<Value> {
+    Json(json!({ "id": user.id, "name": user.name, "admin": user.admin }))
 }
 
-async fn list_jobs(State(app): State<AppRef>, headers: HeaderMap) -> Result<Json<Value>, ApiError> {
-    let user = authenticate(&app, &headers)?;
+async fn list_jobs(State(app): State<AppRef>, user: User) -> Result<Json<Value>, ApiError> {
     let positions = app.scheduler.queue_positions();
     let jobs: Vec<Value> = app
         .jobs
@@ -197,10 +211,9 @@ async fn list_jobs(State(app): State<AppRef>, headers: HeaderMap) -> Result<Json
 
 async fn get_job(
     State(app): State<AppRef>,
-    headers: HeaderMap,
+    user: User,
     Path(id): Path<String>,
 ) -> Result<Json<Value>, ApiError> {
-    let user = authenticate(&app, &headers)?;
     let (row, snap) = visible_job(&app, &user, &id)?;
     let position = app.scheduler.queue_position(row.id);
     Ok(Json(job_json(&app, &user, &row, &snap, position)))
@@ -208,21 +221,48 @@ async fn get_job(
 
 async fn submit_job(
     State(app): State<AppRef>,
+    user: User,
     headers: HeaderMap,
-    body: Result<Bytes, BytesRejection>,
+    body: Body,
 ) -> Result<Response, ApiError> {
-    let user = authenticate(&app, &headers)?;
-    let body = body.map_err(|r| {
-        let status = r.status();
-        let msg = if status == StatusCode::PAYLOAD_TOO_LARGE {
+    // The token was checked (the `User` extractor) before any of the body is read; a body
+    // declared too large is refused before it is read too.
+    let limit = app.config.limits.body_bytes;
+    let too_large = || {
+        ApiError::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            Some("body"),
+            format!("request body larger than the limit of {limit} bytes"),
+        )
+    };
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > limit as u64) {
+        return Err(too_large());
+    }
+    let read = tokio::time::timeout(app.config.body_timeout, axum::body::to_bytes(body, limit));
+    let body = read.await.map_err(|_| {
+        ApiError::new(
+            StatusCode::REQUEST_TIMEOUT,
+            Some("body"),
             format!(
-                "request body larger than the limit of {} bytes",
-                app.config.limits.body_bytes
-            )
+                "the request body did not arrive within {} s",
+                app.config.body_timeout.as_secs_f64()
+            ),
+        )
+    })?;
+    let body = body.map_err(|e| {
+        if over_limit(&e) {
+            too_large()
         } else {
-            r.body_text()
-        };
-        ApiError::new(status, Some("body"), msg)
+            ApiError::new(
+                StatusCode::BAD_REQUEST,
+                Some("body"),
+                format!("reading the body: {e}"),
+            )
+        }
     })?;
     let value: Value = serde_json::from_slice(&body).map_err(|e| {
         ApiError::new(
@@ -270,13 +310,17 @@ async fn submit_job(
             ),
         ));
     }
+    let scene_text = req.scene_name.is_none().then(|| scene.json.to_string());
+    let scene_bytes = scene_text.as_ref().map_or(0, |t| t.len() as u64);
+    check_storage(&app, &user, scene_bytes + needs.result_bytes)?;
     let mut row = JobRow {
         id: 0,
         user_id: user.id,
         public: req.public,
         status: Status::Queued,
         scene_name: scene.name.clone(),
-        scene_json: req.scene_name.is_none().then(|| scene.json.to_string()),
+        scene_bytes,
+        result_bytes: needs.result_bytes,
         memory_bytes: needs.memory_bytes,
         params_json: serde_json::to_string(&params_json)
             .map_err(|e| ApiError::internal(e.to_string()))?,
@@ -288,13 +332,45 @@ async fn submit_job(
     };
     // Durable before it is acknowledged.
     let (app2, row2) = (app.clone(), row.clone());
-    row.id = blocking(move || Ok(app2.store.insert_job(&row2)?)).await?;
+    row.id = blocking(move || Ok(app2.store.insert_job(&row2, scene_text.as_deref())?)).await?;
     let id = row.id;
     app.jobs.insert(row);
     app.scheduler.enqueue(id, user.id, needs.memory_bytes);
     let body =
         json!({ "id": id, "status": "queued", "links": { "self": format!("/api/jobs/{id}") } });
     Ok((StatusCode::ACCEPTED, Json(body)).into_response())
+}
+
+/// A user's storage quota: their uploaded scenes and result files, with what this job adds
+/// (`adding`: its scene and an estimate of its images), must fit.
+fn check_storage(app: &AppRef, user: &User, adding: u64) -> Result<(), ApiError> {
+    let quota = app.config.limits.storage_bytes_per_user;
+    let used = app.jobs.storage_of(user.id);
+    if used + adding > quota {
+        return Err(ApiError::invalid(
+            "limits.storage_per_user",
+            format!(
+                "your jobs take {} MiB of your {} MiB storage and this one needs about {} MiB more: \
+                 delete some finished jobs",
+                used.div_ceil(1 << 20),
+                quota >> 20,
+                adding.div_ceil(1 << 20)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Whether reading a body failed because it passed the limit.
+fn over_limit(e: &axum::Error) -> bool {
+    let mut source: Option<&(dyn std::error::Error + 'static)> = Some(e);
+    while let Some(err) = source {
+        if err.is::<http_body_util::LengthLimitError>() {
+            return true;
+        }
+        source = err.source();
+    }
+    false
 }
 
 /// A reference job must be one the user may see, be done, and have this job's `size`.
@@ -341,10 +417,9 @@ fn check_reference(
 
 async fn delete_job(
     State(app): State<AppRef>,
-    headers: HeaderMap,
+    user: User,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    let user = authenticate(&app, &headers)?;
     let (row, _) = visible_job(&app, &user, &id)?;
     if !(user.admin || row.user_id == user.id) {
         return Err(ApiError::new(
@@ -395,39 +470,51 @@ async fn delete_job(
     ))
 }
 
-/// A job's final image (`ext`: png or exr).
+/// A job's final image (`ext`: png or exr), or its latest preview. Streamed from the file
+/// (tower-http's `ServeFile`: chunks, not the whole file in memory), with `Range`,
+/// conditional requests and a cheap `HEAD` (axum answers it from the same handler without a
+/// body). A preview replaced meanwhile (by a rename) does not disturb a download in flight: it
+/// reads the file it opened.
 async fn image(
     State(app): State<AppRef>,
-    headers: HeaderMap,
+    user: User,
     Path(id): Path<String>,
     ext: &'static str,
+    req: Request,
 ) -> Result<Response, ApiError> {
     let mime = if ext == "png" {
         "image/png"
     } else {
         "image/x-exr"
     };
-    let user = authenticate(&app, &headers)?;
     let (row, _) = visible_job(&app, &user, &id)?;
     let path = result_path(&app.config.data, row.id, ext);
-    match tokio::fs::read(&path).await {
-        Ok(bytes) => Ok(([(header::CONTENT_TYPE, mime)], bytes).into_response()),
-        Err(_) => Err(ApiError::new(
+    if tokio::fs::metadata(&path).await.is_err() {
+        return Err(ApiError::new(
             StatusCode::NOT_FOUND,
             None,
             format!("no image yet: the job is {}", row.status.as_str()),
-        )),
+        ));
     }
+    let mut served = ServeFile::new(path)
+        .oneshot(req)
+        .await
+        .map_err(|e| ApiError::internal(format!("serving the image: {e}")))?;
+    if served.status().is_success() {
+        served
+            .headers_mut()
+            .insert(header::CONTENT_TYPE, header::HeaderValue::from_static(mime));
+    }
+    Ok(served.map(Body::new))
 }
 
 /// SSE: `status`, `progress`, `preview`, then one final `done|failed|cancelled`. A client
 /// that connects late first gets the current status and progress.
 async fn job_events(
     State(app): State<AppRef>,
-    headers: HeaderMap,
+    user: User,
     Path(id): Path<String>,
 ) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
-    let user = authenticate(&app, &headers)?;
     let (row, _) = visible_job(&app, &user, &id)?;
     let live = app
         .jobs
@@ -497,11 +584,7 @@ fn diff_events(last: Option<&Snapshot>, now: &Snapshot) -> Vec<Event> {
     out
 }
 
-async fn list_scenes(
-    State(app): State<AppRef>,
-    headers: HeaderMap,
-) -> Result<Json<Value>, ApiError> {
-    authenticate(&app, &headers)?;
+async fn list_scenes(State(app): State<AppRef>, _user: User) -> Result<Json<Value>, ApiError> {
     let scenes: Vec<Value> = app
         .catalog
         .list()
@@ -513,10 +596,9 @@ async fn list_scenes(
 
 async fn get_scene(
     State(app): State<AppRef>,
-    headers: HeaderMap,
+    _user: User,
     Path(name): Path<String>,
 ) -> Result<Json<Value>, ApiError> {
-    authenticate(&app, &headers)?;
     app.catalog
         .json(&name)
         .map(Json)

@@ -193,6 +193,10 @@ pub struct Limits {
     pub max_queued_per_user: usize,
     /// Memory all running renders together may use.
     pub memory_bytes: u64,
+    /// Most work units ([`JobNeeds::work`]) one job may ask for.
+    pub max_work: f64,
+    /// Disk one user's uploaded scenes and result files may take.
+    pub storage_bytes_per_user: u64,
 }
 
 impl Limits {
@@ -205,6 +209,9 @@ impl Limits {
         max_triangles: 2_000_000,
         max_queued_per_user: 32,
         memory_bytes: 8 << 30,
+        // About 10^12 rays: days of this 2-core machine; a typical final render is 10^9.
+        max_work: 1e12,
+        storage_bytes_per_user: 2 << 30,
     };
 }
 
@@ -219,6 +226,14 @@ pub struct JobNeeds {
     pub pixels: u64,
     pub triangles: usize,
     pub memory_bytes: u64,
+    /// The job's work in ray-sized units: every camera sample and final-gather ray, every
+    /// emitted photon, and (for `photon`) each k-NN neighbour of the irradiance precompute,
+    /// times the passes of a progressive job. An upper guide, not a prediction of seconds:
+    /// it bounds what one job may take from the box, whatever its parameters.
+    pub work: f64,
+    /// An upper estimate of the job's result files: the EXR (f32 RGBA), the PNG, and a
+    /// progressive job's state (the f64 sum image).
+    pub result_bytes: u64,
 }
 
 impl JobNeeds {
@@ -257,6 +272,27 @@ impl JobNeeds {
             pixels,
             triangles,
             memory_bytes: maps + irradiance + film + geometry + (16 << 20),
+            work: Self::work(pixels, p),
+            result_bytes: pixels * 20
+                + if p.integrator == IntegratorKind::Ppm {
+                    pixels * 24
+                } else {
+                    0
+                }
+                + (64 << 10),
+        }
+    }
+
+    fn work(pixels: u64, p: &RenderParams) -> f64 {
+        let camera = pixels as f64 * p.spp as f64 * (1.0 + p.gather_rays as f64);
+        let photons = match p.integrator {
+            IntegratorKind::Raytrace => 0.0,
+            IntegratorKind::Photon | IntegratorKind::Ppm => (p.photons + p.caustic_photons) as f64,
+        };
+        match p.integrator {
+            IntegratorKind::Ppm => (camera + photons) * p.iterations as f64,
+            IntegratorKind::Photon => camera + photons + p.photons as f64 / 4.0 * p.k as f64,
+            IntegratorKind::Raytrace => camera,
         }
     }
 
@@ -302,6 +338,17 @@ impl JobNeeds {
                     format!("{n} {what} exceed the limit of {limit}"),
                 ));
             }
+        }
+        if self.work > limits.max_work {
+            return Err(ApiError::invalid(
+                "params",
+                format!(
+                    "this job is an estimated {:.3e} ray samples of work (pixels x spp x (1 + \
+                     gather_rays), photons, passes), more than the server's limit of {:.3e} \
+                     (fewer samples, gather rays, pixels, photons or passes would fit)",
+                    self.work, limits.max_work
+                ),
+            ));
         }
         if self.memory_bytes > limits.memory_bytes {
             return Err(ApiError::invalid(
@@ -447,6 +494,51 @@ pub fn cache_key(scene_json: &Value, photon_params: &PhotonParams) -> String {
 /// preview), and `ppmstate` (a progressive job's running state, while it may resume).
 pub fn result_path(data: &Path, id: i64, ext: &str) -> PathBuf {
     data.join("results").join(format!("{id}.{ext}"))
+}
+
+/// Result files of jobs the store does not hold (it lost rows, or was replaced) are moved
+/// to `results/orphaned/` and said loudly: never served as another job's, never deleted.
+pub fn set_aside_orphans(data: &Path, ids: &std::collections::HashSet<i64>) {
+    let dir = data.join("results");
+    let Ok(entries) = std::fs::read_dir(&dir) else {
+        return;
+    };
+    let mut moved = 0;
+    for e in entries.flatten() {
+        let path = e.path();
+        if !path.is_file() {
+            continue;
+        }
+        let id = path
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .and_then(|s| s.parse::<i64>().ok());
+        if id.is_none_or(|id| ids.contains(&id)) {
+            continue; // not a result file (temporaries), or a known job's
+        }
+        let orphaned = dir.join("orphaned");
+        let to = orphaned.join(e.file_name());
+        match std::fs::create_dir_all(&orphaned).and_then(|_| std::fs::rename(&path, &to)) {
+            Ok(()) => moved += 1,
+            Err(err) => tracing::error!("setting aside {}: {err}", path.display()),
+        }
+    }
+    if moved > 0 {
+        tracing::error!(
+            "the store and the data folder disagree: {moved} result files belong to no job in \
+             the store (it lost rows?); moved to {}",
+            dir.join("orphaned").display()
+        );
+    }
+}
+
+/// Bytes a job's result files take on disk now.
+pub fn result_bytes(data: &Path, id: i64) -> u64 {
+    ["png", "exr", "ppmstate"]
+        .iter()
+        .filter_map(|ext| std::fs::metadata(result_path(data, id, ext)).ok())
+        .map(|m| m.len())
+        .sum()
 }
 
 /// Remove a job's result files (`which`: extensions, see [`result_path`]); missing ones are

@@ -14,7 +14,10 @@ use super::AppRef;
 
 #[derive(Default)]
 pub struct Metrics {
-    http: Mutex<BTreeMap<(String, String, u16), u64>>,
+    /// Keyed by (method, route template, status): every part from a small closed set (see
+    /// [`method_label`]; routes are the router's templates or "unmatched"), so no client can
+    /// grow this map.
+    http: Mutex<BTreeMap<(&'static str, String, u16), u64>>,
     render_seconds: Mutex<f64>,
 }
 
@@ -26,13 +29,14 @@ impl Metrics {
             .unwrap_or_else(|e| e.into_inner()) += s;
     }
 
-    fn record(&self, method: &str, route: &str, status: u16) {
-        *self
-            .http
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .entry((method.to_string(), route.to_string(), status))
-            .or_default() += 1;
+    fn record(&self, method: &'static str, route: &str, status: u16) {
+        let mut http = self.http.lock().unwrap_or_else(|e| e.into_inner());
+        match http.get_mut(&(method, route.to_string(), status)) {
+            Some(n) => *n += 1,
+            None => {
+                http.insert((method, route.to_string(), status), 1);
+            }
+        }
     }
 }
 
@@ -43,10 +47,31 @@ pub async fn track(State(app): State<AppRef>, req: Request, next: Next) -> Respo
         .get::<MatchedPath>()
         .map_or("unmatched", |m| m.as_str())
         .to_string();
-    let method = req.method().as_str().to_string();
+    let method = method_label(req.method());
     let resp = next.run(req).await;
-    app.metrics.record(&method, &route, resp.status().as_u16());
+    app.metrics.record(method, &route, resp.status().as_u16());
     resp
+}
+
+/// A request method as a metric label: the standard methods by name, anything else (any
+/// token is a valid HTTP method) as "other".
+fn method_label(m: &axum::http::Method) -> &'static str {
+    use axum::http::Method;
+    const KNOWN: [(Method, &str); 9] = [
+        (Method::GET, "GET"),
+        (Method::HEAD, "HEAD"),
+        (Method::POST, "POST"),
+        (Method::PUT, "PUT"),
+        (Method::DELETE, "DELETE"),
+        (Method::OPTIONS, "OPTIONS"),
+        (Method::PATCH, "PATCH"),
+        (Method::TRACE, "TRACE"),
+        (Method::CONNECT, "CONNECT"),
+    ];
+    KNOWN
+        .iter()
+        .find(|(k, _)| k == m)
+        .map_or("other", |(_, name)| name)
 }
 
 /// One metric family with a single unlabelled sample.

@@ -8,6 +8,7 @@ mod auth;
 mod cache;
 mod error;
 mod jobs;
+mod listen;
 mod metrics;
 mod runner;
 mod scheduler;
@@ -25,6 +26,7 @@ use anyhow::Context;
 use tokio::sync::watch;
 
 pub use jobs::Limits;
+pub use listen::ConnLimits;
 
 use auth::User;
 use cache::MapCache;
@@ -47,6 +49,10 @@ pub struct Config {
     pub max_running: usize,
     pub cache_bytes: u64,
     pub limits: Limits,
+    /// Connection cap and header/idle timeout of the accept loop.
+    pub conn: ConnLimits,
+    /// Time a client has to send a request body.
+    pub body_timeout: Duration,
 }
 
 /// Shared state of a running server.
@@ -72,7 +78,8 @@ fn ensure_dirs(data: &Path) -> anyhow::Result<()> {
         .with_context(|| format!("creating {}", data.display()))
 }
 
-/// `photonbox user add NAME`: print a new user's token.
+/// `photonbox user add NAME`: print a new user's token. Before the first `serve` too: the
+/// store is created, and with it the admin (its token in `admin-token`), as `serve` would.
 pub fn add_user(data: &Path, name: &str, admin: bool) -> anyhow::Result<String> {
     anyhow::ensure!(
         auth::valid_name(name),
@@ -80,6 +87,7 @@ pub fn add_user(data: &Path, name: &str, admin: bool) -> anyhow::Result<String> 
     );
     ensure_dirs(data)?;
     let store = Store::open(data).context("opening the store")?;
+    ensure_admin(&store, data)?;
     let (_, token) = store.add_user(name, admin).map_err(|e| match e {
         rusqlite::Error::SqliteFailure(f, _)
             if f.code == rusqlite::ErrorCode::ConstraintViolation =>
@@ -89,6 +97,43 @@ pub fn add_user(data: &Path, name: &str, admin: bool) -> anyhow::Result<String> 
         e => anyhow::anyhow!("adding the user: {e}"),
     })?;
     Ok(token)
+}
+
+/// The admin's token, creating the admin (and `admin-token`) in a store without users.
+/// An `admin-token` file whose token the store does not know (the store lost its rows, or
+/// was replaced) is said loudly and repaired: the admin user is created again with the
+/// file's token, so whoever holds the file is not locked out. None if the file is gone.
+fn ensure_admin(store: &Store, data: &Path) -> anyhow::Result<Option<String>> {
+    let path = data.join("admin-token");
+    let file = std::fs::read_to_string(&path)
+        .ok()
+        .map(|t| t.trim().to_string());
+    if store.user_count()? == 0 && file.is_none() {
+        let (_, token) = store.add_user("admin", true)?;
+        write_admin_token(data, &token)?;
+        return Ok(Some(token));
+    }
+    let Some(token) = file else {
+        return Ok(None);
+    };
+    if store
+        .user_by_token_hash(&auth::token_hash(&token))?
+        .is_some()
+    {
+        return Ok(Some(token));
+    }
+    tracing::error!(
+        "{} holds a token the store does not know (the store lost rows?): creating the admin \
+         user again with it",
+        path.display()
+    );
+    if store.restore_admin(&auth::token_hash(&token)).is_err() {
+        // Not valid as a token, or no way to restore it: a new admin token replaces it.
+        let (_, token) = store.add_user(&format!("admin-{}", &auth::new_token()[..8]), true)?;
+        write_admin_token(data, &token)?;
+        return Ok(Some(token));
+    }
+    Ok(Some(token))
 }
 
 /// Write the admin token beside the store, readable by its owner only (atomically: a crash
@@ -109,14 +154,7 @@ impl App {
     fn open(config: Config) -> anyhow::Result<(Arc<App>, Option<String>)> {
         ensure_dirs(&config.data)?;
         let store = Store::open(&config.data).context("opening the store")?;
-        let mut admin_token = None;
-        if store.user_count()? == 0 {
-            let (_, token) = store.add_user("admin", true)?;
-            write_admin_token(&config.data, &token)?;
-            admin_token = Some(token);
-        } else if let Ok(t) = std::fs::read_to_string(config.data.join("admin-token")) {
-            admin_token = Some(t.trim().to_string());
-        }
+        let admin_token = ensure_admin(&store, &config.data)?;
         let app = Arc::new(App {
             scheduler: Scheduler::new(config.max_running, config.limits.memory_bytes),
             cache: MapCache::new(config.cache_bytes),
@@ -140,7 +178,18 @@ impl App {
         for (id, name) in self.store.user_names()? {
             self.user_names.lock().unwrap().insert(id, name);
         }
-        for mut row in self.store.all_jobs()? {
+        let rows = self.store.all_jobs()?;
+        let ids: std::collections::HashSet<i64> = rows.iter().map(|r| r.id).collect();
+        jobs::set_aside_orphans(&self.config.data, &ids);
+        for mut row in rows {
+            row.result_bytes = jobs::result_bytes(&self.config.data, row.id);
+            if row.status == Status::Done && row.result_bytes == 0 {
+                tracing::error!(
+                    "job {} is done but its result files are gone from {}",
+                    row.id,
+                    self.config.data.join("results").display()
+                );
+            }
             if row.status == Status::Running {
                 row.status = Status::Queued;
                 row.started = None;
@@ -168,6 +217,7 @@ impl App {
         if row.status.is_final() {
             // A progressive job's saved state is kept only while the job may resume.
             jobs::remove_results(&self.config.data, id, &["ppmstate"]);
+            row.result_bytes = jobs::result_bytes(&self.config.data, id);
         }
         self.jobs.publish(row.clone()).then_some(row)
     }
@@ -211,15 +261,17 @@ pub fn serve(config: Config) -> anyhow::Result<()> {
         let _ = std::io::stdout().flush();
         let router = api::router(app.clone());
         let app2 = app.clone();
-        axum::serve(listener, router)
-            .with_graceful_shutdown(async move {
-                shutdown_signal().await;
-                tracing::info!("shutting down");
-                // End SSE streams and stop renders (they go back to the queue).
-                app2.shutdown.send_replace(true);
-                app2.scheduler.stop();
-            })
-            .await?;
+        let mut conn = config.conn.clone();
+        conn.max_connections = listen::connection_cap(conn.max_connections);
+        tracing::info!("at most {} connections at once", conn.max_connections);
+        listen::serve(listener, router, conn, async move {
+            shutdown_signal().await;
+            tracing::info!("shutting down");
+            // End SSE streams and stop renders (they go back to the queue).
+            app2.shutdown.send_replace(true);
+            app2.scheduler.stop();
+        })
+        .await;
         anyhow::Ok(())
     })?;
     app.scheduler.stop();

@@ -48,11 +48,16 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
     };
     let t0 = Instant::now();
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        // An uploaded scene's text lives in the store only (not in the live job table).
+        let scene_json = app
+            .store
+            .scene_json(id)
+            .map_err(|e| Failure::Error(format!("reading the job's scene: {e}")))?;
         execute(
             app,
             id,
             &row.params_json,
-            row.scene_json.as_deref(),
+            scene_json.as_deref(),
             row.scene_name.as_deref(),
             cancel,
         )
@@ -94,6 +99,18 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
     if matches!(result, Err(Failure::Yielded)) {
         app.scheduler
             .requeue_front(id, row.user_id, row.memory_bytes);
+    }
+    give_memory_back();
+}
+
+/// Return the freed heap of a finished render to the system. glibc keeps freed memory in
+/// its arenas (one per render thread) for reuse, so a server that ran one large job would
+/// otherwise stay at that job's peak for good.
+fn give_memory_back() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only releases free memory; it is thread-safe.
+    unsafe {
+        libc::malloc_trim(0);
     }
 }
 

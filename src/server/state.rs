@@ -69,6 +69,15 @@ impl Jobs {
         );
     }
 
+    /// Bytes of storage a user's jobs take: uploaded scenes and result files.
+    pub fn storage_of(&self, user: UserId) -> u64 {
+        self.lock()
+            .values()
+            .filter(|e| e.row.user_id == user)
+            .map(|e| e.row.scene_bytes + e.row.result_bytes)
+            .sum()
+    }
+
     pub fn remove(&self, id: i64) -> Option<JobRow> {
         self.lock().remove(&id).map(|e| e.row)
     }
@@ -88,14 +97,16 @@ impl Jobs {
             .map(|e| (e.row.clone(), e.live.borrow().clone()))
     }
 
-    /// Rows and snapshots passing `keep`, newest first.
+    /// Rows and snapshots passing `keep`, newest first (ids are random: by creation time).
     pub fn list(&self, keep: impl Fn(&JobRow) -> bool) -> Vec<(JobRow, Snapshot)> {
-        self.lock()
+        let mut out: Vec<_> = self
+            .lock()
             .values()
-            .rev()
             .filter(|e| keep(&e.row))
             .map(|e| (e.row.clone(), e.live.borrow().clone()))
-            .collect()
+            .collect();
+        out.sort_by(|(a, _), (b, _)| b.created.total_cmp(&a.created).then(b.id.cmp(&a.id)));
+        out
     }
 
     /// Replace a job's row with one already committed to the store, and publish its status

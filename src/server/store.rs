@@ -65,8 +65,13 @@ pub struct JobRow {
     pub status: Status,
     /// A built-in scene's name, or the name given in an uploaded scene.
     pub scene_name: Option<String>,
-    /// The uploaded scene (None for built-in scenes, which are read from scenes/).
-    pub scene_json: Option<String>,
+    /// Bytes of the uploaded scene's JSON (0 for built-in scenes, which are read from
+    /// scenes/). The text itself stays in the store (`Store::scene_json`): the live job table
+    /// and every job listing would otherwise carry it.
+    pub scene_bytes: u64,
+    /// Bytes of the job's result files on disk (PNG, EXR, a progressive job's state), as
+    /// last measured; with `scene_bytes`, what the job takes of its owner's storage quota.
+    pub result_bytes: u64,
     /// The job's parameters as submitted (validated).
     pub params_json: String,
     /// Estimated peak memory of the render (`jobs::JobNeeds`), kept so that a restart can
@@ -152,6 +157,16 @@ impl Store {
         Ok((user, token))
     }
 
+    /// Create the admin user again with a known token hash (a store that lost its users; see
+    /// `server::ensure_admin`). Fails if a user named "admin" exists.
+    pub fn restore_admin(&self, token_hash: &str) -> rusqlite::Result<()> {
+        self.conn().execute(
+            "INSERT INTO users (name, token_hash, admin, created) VALUES ('admin', ?1, 1, ?2)",
+            params![token_hash, now()],
+        )?;
+        Ok(())
+    }
+
     pub fn user_by_token_hash(&self, hash: &str) -> rusqlite::Result<Option<User>> {
         self.conn()
             .query_row(
@@ -175,25 +190,55 @@ impl Store {
         rows.collect()
     }
 
-    /// Commit a new queued job; returns its id.
-    pub fn insert_job(&self, row: &JobRow) -> rusqlite::Result<i64> {
+    /// Commit a new queued job with its uploaded scene (None: a built-in one); returns its
+    /// id.
+    ///
+    /// Ids are random in 1..2^53 (exact in JavaScript's numbers), never a sequence: a store
+    /// that lost rows (its WAL gone after a crash) forgets its sequence too, and would hand
+    /// an old job's id, and so its result files, to a new job of another user.
+    pub fn insert_job(&self, row: &JobRow, scene_json: Option<&str>) -> rusqlite::Result<i64> {
         let conn = self.conn();
-        conn.execute(
-            "INSERT INTO jobs (user_id, public, status, scene_name, scene_json, params_json,
-                               memory_bytes, created)
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
-            params![
-                row.user_id,
-                row.public,
-                row.status.as_str(),
-                row.scene_name,
-                row.scene_json,
-                row.params_json,
-                row.memory_bytes as i64,
-                row.created
-            ],
-        )?;
-        Ok(conn.last_insert_rowid())
+        let mut tries = 0;
+        loop {
+            let id = rand::random_range(1..(1i64 << 53));
+            let inserted = conn.execute(
+                "INSERT INTO jobs (id, user_id, public, status, scene_name, scene_json,
+                                   params_json, memory_bytes, created)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
+                params![
+                    id,
+                    row.user_id,
+                    row.public,
+                    row.status.as_str(),
+                    row.scene_name,
+                    scene_json,
+                    row.params_json,
+                    row.memory_bytes as i64,
+                    row.created
+                ],
+            );
+            match inserted {
+                Ok(_) => return Ok(id),
+                // An id taken already (about n / 2^53 a try): draw another.
+                Err(rusqlite::Error::SqliteFailure(f, _))
+                    if f.extended_code == rusqlite::ffi::SQLITE_CONSTRAINT_PRIMARYKEY
+                        && tries < 8 =>
+                {
+                    tries += 1;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+    }
+
+    /// A job's uploaded scene, read when the job starts.
+    pub fn scene_json(&self, id: i64) -> rusqlite::Result<Option<String>> {
+        self.conn()
+            .query_row("SELECT scene_json FROM jobs WHERE id = ?1", [id], |r| {
+                r.get(0)
+            })
+            .optional()
+            .map(Option::flatten)
     }
 
     /// Write a job's state (status, times, error, stats).
@@ -223,7 +268,7 @@ impl Store {
     pub fn all_jobs(&self) -> rusqlite::Result<Vec<JobRow>> {
         let conn = self.conn();
         let mut st = conn.prepare(
-            "SELECT id, user_id, public, status, scene_name, scene_json, params_json, created,
+            "SELECT id, user_id, public, status, scene_name, length(scene_json), params_json, created,
                     started, finished, error, stats_json, memory_bytes FROM jobs ORDER BY id",
         )?;
         let rows = st.query_map([], |r| {
@@ -234,7 +279,8 @@ impl Store {
                 public: r.get(2)?,
                 status: Status::parse(&status).unwrap_or(Status::Failed),
                 scene_name: r.get(4)?,
-                scene_json: r.get(5)?,
+                scene_bytes: r.get::<_, Option<i64>>(5)?.unwrap_or(0).max(0) as u64,
+                result_bytes: 0,
                 params_json: r.get(6)?,
                 created: r.get(7)?,
                 started: r.get(8)?,

@@ -21,14 +21,34 @@ pub struct Server {
 impl Server {
     /// Start a server on `data` with extra flags; returns once it listens.
     pub fn start(data: &Path, flags: &[&str]) -> Server {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_photonbox"))
-            .args(["serve", "--addr", "127.0.0.1:0", "--threads", "2", "--data"])
+        Server::start_limited(data, flags, None)
+    }
+
+    /// As `start`, with the process's descriptor limit (soft and hard) set to `nofile`.
+    pub fn start_limited(data: &Path, flags: &[&str], nofile: Option<u64>) -> Server {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_photonbox"));
+        cmd.args(["serve", "--addr", "127.0.0.1:0", "--threads", "2", "--data"])
             .arg(data)
             .args(flags)
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("start photonbox serve");
+            .stderr(Stdio::inherit());
+        if let Some(n) = nofile {
+            use std::os::unix::process::CommandExt;
+            // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
+            unsafe {
+                cmd.pre_exec(move || {
+                    let lim = libc::rlimit {
+                        rlim_cur: n,
+                        rlim_max: n,
+                    };
+                    if libc::setrlimit(libc::RLIMIT_NOFILE, &lim) != 0 {
+                        return Err(std::io::Error::last_os_error());
+                    }
+                    Ok(())
+                });
+            }
+        }
+        let mut child = cmd.spawn().expect("start photonbox serve");
         let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
         let first = lines.next().expect("server output").unwrap();
         let base = first
@@ -71,6 +91,15 @@ impl Server {
         }
         let status = self.child.wait().unwrap();
         (status, t0.elapsed().as_secs_f64())
+    }
+
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// host:port, for raw TCP clients.
+    pub fn addr(&self) -> String {
+        self.base.trim_start_matches("http://").to_string()
     }
 
     pub fn url(&self, path: &str) -> String {

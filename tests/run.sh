@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# The project's one test command (README.md, "Set up on a fresh machine"; `.ci/run` runs it):
+# installs what the tests need when it is missing, then runs every test.
+#
+# The browser tests (tests/browser/) drive Debian's headless Chromium through chromedriver and
+# Debian's Firefox ESR through geckodriver. Debian has no geckodriver package (bookworm): it
+# comes from crates.io then, into ~/.cargo/bin (a few minutes' build, once per machine).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+export PATH="${CARGO_HOME:-$HOME/.cargo}/bin:$PATH"
+sudo=""
+if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
+apt_get() { $sudo env DEBIAN_FRONTEND=noninteractive apt-get "$@"; }
+packages=()
+command -v chromium >/dev/null || packages+=(chromium)
+command -v chromedriver >/dev/null || packages+=(chromium-driver)
+command -v firefox-esr >/dev/null || command -v firefox >/dev/null || packages+=(firefox-esr)
+if [ ${#packages[@]} -gt 0 ] || ! command -v geckodriver >/dev/null; then
+  echo "tests/run.sh: installing what the tests need: ${packages[*]:-} geckodriver" >&2
+  apt_get update -q
+  if ! command -v geckodriver >/dev/null && [ -n "$(apt-cache madison geckodriver 2>/dev/null)" ]; then
+    packages+=(geckodriver)
+  fi
+  if [ ${#packages[@]} -gt 0 ]; then apt_get install -y -q "${packages[@]}"; fi
+  if ! command -v geckodriver >/dev/null; then cargo install geckodriver --locked; fi
+fi
+# Whole output (a `| head` would close the pipe early: geckodriver then panics on EPIPE and
+# pipefail fails the run).
+geckodriver --version
+# Every test binary, even after one fails (cargo stops at the first failing binary otherwise).
+cargo test --no-fail-fast "$@"

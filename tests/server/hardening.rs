@@ -1,0 +1,418 @@
+//! What a hostile or careless client tried (docs/security.md), each held by a test here:
+//! bodies refused before they are read, idle and slow connections closed, a connection cap
+//! below the descriptor limit, bounded metric labels, a compute limit, a storage quota,
+//! streamed downloads, ids never reused, the admin never locked out.
+
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::time::Duration;
+
+use serde_json::{Value, json};
+
+use super::harness::*;
+
+/// Send `head` (request line and headers, no body) on a new connection and read what the
+/// server answers first, up to the end of its head. The read timeout only bounds a failure:
+/// a server that waits for the body never answers.
+fn first_response_head(s: &Server, head: &str) -> String {
+    let mut c = TcpStream::connect(s.addr()).unwrap();
+    c.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    c.write_all(head.as_bytes()).unwrap();
+    let mut got = Vec::new();
+    let mut buf = [0u8; 4096];
+    while !got.windows(4).any(|w| w == b"\r\n\r\n") {
+        match c.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => got.extend_from_slice(&buf[..n]),
+            Err(e) => panic!("no answer before the body was sent ({e}); got {got:?}"),
+        }
+    }
+    String::from_utf8_lossy(&got).into_owned()
+}
+
+#[test]
+fn bodies_are_refused_before_they_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let post = |extra: &str| {
+        format!(
+            "POST /api/jobs HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n\
+             Content-Length: 16000000\r\n{extra}\r\n"
+        )
+    };
+    // No token: 401 with the 16 MB body never sent.
+    let head = first_response_head(&s, &post(""));
+    assert!(head.starts_with("HTTP/1.1 401"), "{head}");
+    // Expect: 100-continue without a token: 401, and no `100 Continue` first.
+    let head = first_response_head(&s, &post("Expect: 100-continue\r\n"));
+    assert!(head.starts_with("HTTP/1.1 401"), "{head}");
+    // A token, but a declared body over the limit (16 MiB default is above 16000000: use a
+    // bigger one): 413 before the body, with or without Expect.
+    let big = |extra: &str| {
+        format!(
+            "POST /api/jobs HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {}\r\n\
+             Content-Length: 100000000\r\n{extra}\r\n",
+            s.admin
+        )
+    };
+    let head = first_response_head(&s, &big(""));
+    assert!(head.starts_with("HTTP/1.1 413"), "{head}");
+    let head = first_response_head(&s, &big("Expect: 100-continue\r\n"));
+    assert!(head.starts_with("HTTP/1.1 413"), "{head}");
+    // A good token and a small body still get their `100 Continue` and the job.
+    let body = json!({"scene_name": "cornell", "params": {"width": 8, "height": 8,
+        "photons": 1000, "caustic_photons": 0, "spp": 1, "gather_rays": 0}})
+    .to_string();
+    let mut c = TcpStream::connect(s.addr()).unwrap();
+    c.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    write!(
+        c,
+        "POST /api/jobs HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {}\r\n\
+         Content-Type: application/json\r\nContent-Length: {}\r\nExpect: 100-continue\r\n\r\n",
+        s.admin,
+        body.len()
+    )
+    .unwrap();
+    let mut buf = [0u8; 256];
+    let n = c.read(&mut buf).unwrap();
+    let cont = String::from_utf8_lossy(&buf[..n]).into_owned();
+    assert!(cont.starts_with("HTTP/1.1 100"), "{cont}");
+    c.write_all(body.as_bytes()).unwrap();
+    let mut rest = String::new();
+    let _ = c.read_to_string(&mut rest);
+    assert!(rest.contains("202 Accepted"), "{rest}");
+}
+
+/// Raise this process's soft descriptor limit to its hard one (the test holds more
+/// connections than the server may).
+fn raise_own_nofile() -> u64 {
+    let mut lim = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: get/setrlimit on our own process with a valid struct.
+    unsafe {
+        libc::getrlimit(libc::RLIMIT_NOFILE, &mut lim);
+        lim.rlim_cur = lim.rlim_max;
+        libc::setrlimit(libc::RLIMIT_NOFILE, &lim);
+    }
+    lim.rlim_cur
+}
+
+#[test]
+fn idle_and_slow_connections_are_closed_and_the_server_answers_past_its_descriptor_limit() {
+    let held = 1200;
+    assert!(
+        raise_own_nofile() > held as u64 + 100,
+        "the test needs descriptors"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start_limited(dir.path(), &["--header-timeout", "1"], Some(1024));
+    // More idle connections than the server has descriptors.
+    let idle: Vec<TcpStream> = (0..held)
+        .map(|_| TcpStream::connect(s.addr()).unwrap())
+        .collect();
+    // A slow sender: a header byte at a time, never a complete head.
+    let mut slow = TcpStream::connect(s.addr()).unwrap();
+    slow.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\nX-Slow: ")
+        .unwrap();
+    // The server goes on answering everyone (once the idle ones time out, the cap frees).
+    let r = client().get(s.url("/healthz")).send().unwrap();
+    assert_eq!(r.status().as_u16(), 200);
+    assert_eq!(r.text().unwrap(), "ok\n");
+    // Every idle connection is closed by the server (EOF), and so is the slow sender.
+    let closed = |mut c: TcpStream| {
+        c.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+        let mut b = [0u8; 512];
+        loop {
+            match c.read(&mut b) {
+                Ok(0) => return true,
+                Ok(_) => continue, // a 408 before closing is fine
+                Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => return true,
+                Err(_) => return false,
+            }
+        }
+    };
+    let open = idle
+        .into_iter()
+        .filter(|_| true)
+        .map(closed)
+        .filter(|c| !c)
+        .count();
+    assert_eq!(open, 0, "idle connections left open by the server");
+    for _ in 0..3 {
+        if slow.write_all(b"a").is_err() {
+            break;
+        }
+    }
+    assert!(closed(slow), "the slow sender was not closed");
+    // And the server still serves after all that.
+    let (status, me) = get(&s, &s.admin, "/api/me");
+    assert_eq!(status, 200, "{me}");
+}
+
+#[test]
+fn metric_labels_stay_bounded_whatever_the_methods_and_paths() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    for i in 0..200 {
+        let mut c = TcpStream::connect(s.addr()).unwrap();
+        c.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+        write!(
+            c,
+            "M{i}XYZ /no/such/path/{i} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"
+        )
+        .unwrap();
+        let mut out = String::new();
+        let _ = c.read_to_string(&mut out);
+        assert!(out.starts_with("HTTP/1.1 4"), "{out}");
+    }
+    let text = metrics(&s);
+    assert!(!text.contains("XYZ"), "a client's method became a label");
+    assert!(!text.contains("/no/such"), "a client's path became a label");
+    let http: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("photonbox_http_requests_total{"))
+        .collect();
+    assert!(
+        http.iter().any(|l| l.contains("method=\"other\"")),
+        "{http:?}"
+    );
+    assert!(http.len() <= 4, "labels grew with the requests: {http:?}");
+}
+
+#[test]
+fn a_job_over_the_compute_limit_is_refused_with_its_estimate() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    // About 10^15 samples: 4096^2 pixels x 4096 spp x (1 + 14000 gather rays).
+    let (status, v) = post(
+        &s,
+        &s.admin,
+        &json!({"scene_name": "cornell", "params": {"width": 4096, "height": 4096,
+                "spp": 4096, "gather_rays": 14000, "photons": 1000, "caustic_photons": 0}}),
+    );
+    assert_eq!(status, 422, "{v}");
+    assert_eq!(v["path"], "params", "{v}");
+    let msg = v["error"].as_str().unwrap();
+    let work = 4096f64.powi(3) * 14001.0 + 1000.0 + 1000.0 / 4.0 * 50.0;
+    assert!(
+        msg.contains(&format!("{work:.3e}")),
+        "the estimate ({work:.3e}) is in the error: {msg}"
+    );
+    // The same job, 4096 times smaller, is fine.
+    let (status, v) = post(
+        &s,
+        &s.admin,
+        &json!({"scene_name": "cornell", "params": {"width": 64, "height": 64,
+                "spp": 1, "gather_rays": 16, "photons": 1000, "caustic_photons": 0}}),
+    );
+    assert_eq!(status, 202, "{v}");
+}
+
+#[test]
+fn a_user_storage_quota_refuses_new_jobs_until_old_ones_are_deleted() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &["--storage-mb", "1"]);
+    // An uploaded scene of 600 kB (a long description) and a tiny image: two do not fit in
+    // 1 MiB.
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell.json"))
+        .unwrap();
+    let mut scene: Value = serde_json::from_str(&text).unwrap();
+    scene["description"] = json!("x".repeat(600_000));
+    let job = json!({"scene": scene, "params": {"width": 8, "height": 8,
+        "spp": 1, "integrator": "raytrace"}});
+    let first = run_to_done(&s, &s.admin, job.clone());
+    let (status, v) = post(&s, &s.admin, &job);
+    assert_eq!(status, 422, "{v}");
+    assert_eq!(v["path"], "limits.storage_per_user", "{v}");
+    // Another user has their own quota.
+    let bob = s.add_user("bob");
+    run_to_done(&s, &bob, job.clone());
+    // Deleting the first job frees its space.
+    assert_eq!(delete(&s, &s.admin, first).0, 204);
+    run_to_done(&s, &s.admin, job);
+}
+
+/// The server's peak resident memory (VmHWM) in bytes, and a reset of it.
+fn peak_rss(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    let line = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap();
+    let kb: u64 = line.split_whitespace().nth(1).unwrap().parse().unwrap();
+    kb << 10
+}
+
+fn reset_peak_rss(pid: u32) {
+    // "5" resets the peak resident set size (Linux, proc(5)).
+    std::fs::write(format!("/proc/{pid}/clear_refs"), "5").unwrap();
+}
+
+#[test]
+fn downloads_are_streamed_with_range_and_head() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let id = run_to_done(
+        &s,
+        &s.admin,
+        json!({"scene_name": "cornell", "params": {"integrator": "raytrace",
+               "width": 2048, "height": 2048, "spp": 1}}),
+    );
+    let path = format!("/api/jobs/{id}/image.exr");
+    let file = std::fs::read(dir.path().join("results").join(format!("{id}.exr"))).unwrap();
+    assert!(file.len() > 24 << 20, "a large EXR: {} bytes", file.len());
+    // HEAD: the length, no body.
+    let r = client()
+        .head(s.url(&path))
+        .bearer_auth(&s.admin)
+        .send()
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 200);
+    assert_eq!(
+        r.headers()["content-length"],
+        file.len().to_string().as_str()
+    );
+    assert_eq!(r.headers()["content-type"], "image/x-exr");
+    assert_eq!(r.bytes().unwrap().len(), 0);
+    // Range: the bytes asked for.
+    let r = client()
+        .get(s.url(&path))
+        .bearer_auth(&s.admin)
+        .header("Range", "bytes=1000-1999")
+        .send()
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 206);
+    assert_eq!(&r.bytes().unwrap()[..], &file[1000..2000]);
+    // Eight clients at once: the server's memory does not grow by the file eight times
+    // over (nor once: it streams).
+    reset_peak_rss(s.pid());
+    let before = peak_rss(s.pid());
+    let barrier = std::sync::Barrier::new(8);
+    std::thread::scope(|scope| {
+        for _ in 0..8 {
+            scope.spawn(|| {
+                barrier.wait();
+                let (status, body) = bytes(&s, &s.admin, &path);
+                assert_eq!(status, 200);
+                assert!(body == file, "a download differs from the file");
+            });
+        }
+    });
+    let grew = peak_rss(s.pid()).saturating_sub(before);
+    assert!(
+        grew < file.len() as u64 / 2,
+        "8 downloads of a {} MB file grew the server by {} MB",
+        file.len() >> 20,
+        grew >> 20
+    );
+}
+
+fn sqlite_files(data: &std::path::Path) -> Vec<std::path::PathBuf> {
+    [
+        "photonbox.sqlite3",
+        "photonbox.sqlite3-wal",
+        "photonbox.sqlite3-shm",
+    ]
+    .iter()
+    .map(|f| data.join(f))
+    .collect()
+}
+
+#[test]
+fn a_store_that_lost_rows_never_hands_old_results_to_new_jobs() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path();
+    let s = Server::start(data, &[]);
+    let bob = s.add_user("bob");
+    // The store as it was before alice's job: users only.
+    let alice = s.add_user("alice");
+    s.kill();
+    let saved = tempfile::tempdir().unwrap();
+    for f in sqlite_files(data) {
+        if f.exists() {
+            std::fs::copy(&f, saved.path().join(f.file_name().unwrap())).unwrap();
+        }
+    }
+    let s = Server::start(data, &[]);
+    let old = run_to_done(
+        &s,
+        &alice,
+        json!({"scene_name": "cornell", "params": {"integrator": "raytrace", "width": 16,
+               "height": 16, "spp": 1}}),
+    );
+    s.kill();
+    // The crash took the job's rows: the store is back to what it was before.
+    for f in sqlite_files(data) {
+        let _ = std::fs::remove_file(&f);
+        let from = saved.path().join(f.file_name().unwrap());
+        if from.exists() {
+            std::fs::copy(&from, &f).unwrap();
+        }
+    }
+    let s = Server::start(data, &[]);
+    // The old job's files are set aside, not served.
+    let orphaned = data.join("results").join("orphaned");
+    assert!(orphaned.join(format!("{old}.png")).is_file());
+    assert!(!data.join("results").join(format!("{old}.png")).exists());
+    for t in [&bob, &alice, &s.admin] {
+        assert_eq!(bytes(&s, t, &format!("/api/jobs/{old}/image.png")).0, 404);
+    }
+    // New jobs get new ids, and no image until they render one.
+    for _ in 0..5 {
+        let (status, v) = post(
+            &s,
+            &bob,
+            &json!({"scene_name": "cornell", "params": {"photons": 20000000, "width": 16,
+                    "height": 16, "spp": 1, "gather_rays": 0}}),
+        );
+        assert_eq!(status, 202, "{v}");
+        let id = v["id"].as_i64().unwrap();
+        assert_ne!(id, old, "an id was reused");
+        assert!(id > 0 && id < 1 << 53, "ids are exact in JavaScript: {id}");
+        assert_eq!(bytes(&s, &bob, &format!("/api/jobs/{id}/image.png")).0, 404);
+        delete(&s, &bob, id);
+    }
+}
+
+#[test]
+fn the_admin_is_never_locked_out_by_a_lost_store() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path();
+    let s = Server::start(data, &[]);
+    let admin = s.admin.clone();
+    s.kill();
+    for f in sqlite_files(data) {
+        let _ = std::fs::remove_file(f);
+    }
+    let s = Server::start(data, &[]);
+    assert_eq!(s.admin, admin, "the admin-token file is kept");
+    let (status, me) = get(&s, &admin, "/api/me");
+    assert_eq!(status, 200, "{me}");
+    assert_eq!(me["admin"], true);
+}
+
+#[test]
+fn user_add_before_the_first_serve_creates_the_store_and_the_admin() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("fresh");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_photonbox"))
+        .args(["user", "add", "alice", "--data"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let alice = String::from_utf8(out.stdout).unwrap().trim().to_string();
+    assert!(
+        data.join("admin-token").is_file(),
+        "the admin's token is written"
+    );
+    // `start` asserts the sign-in URL with the admin's token.
+    let s = Server::start(&data, &[]);
+    let (status, me) = get(&s, &s.admin, "/api/me");
+    assert_eq!((status, &me["admin"]), (200, &Value::Bool(true)), "{me}");
+    let (status, me) = get(&s, &alice, "/api/me");
+    assert_eq!((status, &me["name"]), (200, &json!("alice")), "{me}");
+}
