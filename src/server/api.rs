@@ -185,6 +185,8 @@ fn job_json(
         "finished": row.finished,
         "error": row.error,
         "stats": stats,
+        // What the server planned for (the memory budget admits by it).
+        "memory_estimate_bytes": row.memory_bytes,
         "links": {
             "self": base,
             "png": format!("{base}/image.png"),
@@ -285,7 +287,7 @@ async fn submit_job(
     // Reading and parsing the scene (and its meshes) is blocking work.
     let (app2, render) = (app.clone(), params.render.clone());
     let (scene_name, scene_value) = (req.scene_name.clone(), req.scene);
-    let (scene, needs) = blocking(move || {
+    let (mut scene, needs) = blocking(move || {
         let scene = resolve_scene(&app2.catalog, scene_value, scene_name.as_deref())?;
         let needs = JobNeeds::estimate(&scene.desc, &render);
         needs.check(&render, &app2.config.limits)?;
@@ -310,7 +312,10 @@ async fn submit_job(
             ),
         ));
     }
-    let scene_text = req.scene_name.is_none().then(|| scene.json.to_string());
+    let scene_text = req
+        .scene_name
+        .is_none()
+        .then(|| std::mem::take(&mut scene.text));
     let scene_bytes = scene_text.as_ref().map_or(0, |t| t.len() as u64);
     check_storage(&app, &user, scene_bytes + needs.result_bytes)?;
     let mut row = JobRow {

@@ -261,13 +261,19 @@ impl JobNeeds {
         // Traced photons are gathered in per-chunk buffers, then copied into the map.
         let maps = (global + caustic) * photon_bytes * 2;
         let irradiance = global / 4 * 64;
-        let film = pixels * 12 * 3
+        // The camera pass's tiles and image, the images' encodings (PNG, EXR); a progressive
+        // job adds its f64 sum, a pass's image and the saved state. Measured on the largest
+        // images the test limits accept (tests/server/memory.rs): 36 and 75 bytes a pixel.
+        let film = pixels * 48
             + if p.integrator == IntegratorKind::Ppm {
-                pixels * 24
+                pixels * 48
             } else {
                 0
             };
-        let geometry = triangles as u64 * 160;
+        // Measured on the largest mesh the test limits accept (tests/server/memory.rs): the
+        // scene's parsed JSON and description, primitives, the BVH's build, all alive at
+        // once in the submit handler and the job's start, about 900 bytes a triangle.
+        let geometry = triangles as u64 * 1200;
         JobNeeds {
             pixels,
             triangles,
@@ -409,11 +415,38 @@ impl SceneCatalog {
     }
 }
 
-/// The scene of a job: parsed and validated, with the JSON the cache key is made from.
+/// The scene of a job: parsed and validated, with the texts the job is keyed by. Texts, not
+/// the parsed JSON: a `serde_json::Value` of a large mesh takes about ten times its text,
+/// and the render would carry it to the end.
 pub struct ResolvedScene {
     pub desc: SceneDesc,
-    pub json: Value,
+    /// The scene's JSON as compact text, keys sorted (serde_json's maps are): canonical. An
+    /// uploaded scene is stored as it; a progressive job's state is fingerprinted by it.
+    pub text: String,
+    /// The same without `camera`, `name` and `description`: what the photon-map cache key
+    /// hashes ([`cache_key`]).
+    pub without_camera: String,
     pub name: Option<String>,
+}
+
+/// `value`'s canonical text, and that text without the keys that do not shape photon maps.
+fn canonical_texts(value: &mut Value) -> (String, String) {
+    let text = value.to_string();
+    let mut taken = Vec::new();
+    if let Some(obj) = value.as_object_mut() {
+        for key in ["camera", "name", "description"] {
+            if let Some(v) = obj.remove(key) {
+                taken.push((key, v));
+            }
+        }
+    }
+    let without_camera = value.to_string();
+    if let Some(obj) = value.as_object_mut() {
+        for (key, v) in taken {
+            obj.insert(key.to_string(), v);
+        }
+    }
+    (text, without_camera)
 }
 
 /// Resolve a job's scene: a built-in by name, or an uploaded one (which may not reference
@@ -440,22 +473,25 @@ pub fn resolve_scene(
                 ApiError::internal(format!("built-in scene {name}: {e}"))
             };
             let text = std::fs::read_to_string(&path).map_err(|e| internal(&e))?;
-            let json: Value = serde_json::from_str(&text).map_err(|e| internal(&e))?;
-            let desc =
-                SceneDesc::from_value(json.clone(), path.parent()).map_err(|e| internal(&e))?;
+            let mut json: Value = serde_json::from_str(&text).map_err(|e| internal(&e))?;
+            let (text, without_camera) = canonical_texts(&mut json);
+            let desc = SceneDesc::from_value(json, path.parent()).map_err(|e| internal(&e))?;
             Ok(ResolvedScene {
                 desc,
-                json,
+                text,
+                without_camera,
                 name: Some(name.to_string()),
             })
         }
-        (Some(value), None) => {
-            let desc = SceneDesc::from_value(value.clone(), None)
+        (Some(mut value), None) => {
+            let (text, without_camera) = canonical_texts(&mut value);
+            let desc = SceneDesc::from_value(value, None)
                 .map_err(|e| ApiError::invalid(scene_path(&e.path), e.message))?;
             let name = desc.name.clone();
             Ok(ResolvedScene {
                 desc,
-                json: value,
+                text,
+                without_camera,
                 name,
             })
         }
@@ -473,18 +509,11 @@ fn scene_path(p: &str) -> String {
 
 /// The photon-map cache key: a content hash of the scene without its camera, the
 /// parameters that shape the maps, and the renderer's version.
-pub fn cache_key(scene_json: &Value, photon_params: &PhotonParams) -> String {
-    let mut scene = scene_json.clone();
-    if let Some(obj) = scene.as_object_mut() {
-        obj.remove("camera");
-        obj.remove("name");
-        obj.remove("description");
-    }
-    // serde_json's maps are sorted by key: the text is canonical.
+pub fn cache_key(scene: &ResolvedScene, photon_params: &PhotonParams) -> String {
     let text = format!(
         "photonbox {}\n{}\n{:?}",
         env!("CARGO_PKG_VERSION"),
-        scene,
+        scene.without_camera,
         photon_params
     );
     super::auth::sha256_hex(text.as_bytes())

@@ -73,6 +73,8 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
             Err(Failure::Error(format!("the renderer panicked: {msg}")))
         }
     };
+    // Everything the render held is dropped: give it back before the outcome is published.
+    give_memory_back();
     app.metrics.add_render_seconds(t0.elapsed().as_secs_f64());
     let requeue = matches!(result, Err(Failure::Cancelled)) && app.scheduler.is_stopping()
         || matches!(result, Err(Failure::Yielded));
@@ -100,7 +102,6 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
         app.scheduler
             .requeue_front(id, row.user_id, row.memory_bytes);
     }
-    give_memory_back();
 }
 
 /// Return the freed heap of a finished render to the system. glibc keeps freed memory in
@@ -236,7 +237,7 @@ fn execute(
         .build()
         .map_err(|e| bad(format!("starting render threads: {e}")))?;
     let (out, outcome, key) = if p.integrator == IntegratorKind::Ppm {
-        let scene_json = resolved.json.to_string();
+        let scene_json = &resolved.text;
         let out = pool.install(|| {
             render_progressive(
                 app,
@@ -254,7 +255,7 @@ fn execute(
         pool.install(|| -> Result<_, Failure> {
             let analysis = analyse(&scene, p);
             let pp = analysis.photon_params;
-            let key = cache_key(&resolved.json, &pp);
+            let key = cache_key(&resolved, &pp);
             let (maps, outcome) = if pp.global_photons + pp.caustic_photons == 0 {
                 let maps = build_photon_maps(&scene, &pp, &control)?;
                 (Arc::new(maps), CacheOutcome::NotNeeded)

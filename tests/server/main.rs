@@ -3,6 +3,7 @@
 
 mod hardening;
 mod harness;
+mod memory;
 
 use std::time::Instant;
 

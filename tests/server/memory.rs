@@ -1,0 +1,143 @@
+//! Memory truth: the estimate a job is admitted by bounds the server's peak while it renders,
+//! on the largest job the limits accept of each integrator, and a finished job gives its
+//! memory back.
+
+use serde_json::{Value, json};
+
+use super::harness::*;
+
+/// Resident and peak resident memory of a process (VmRSS, VmHWM), in bytes.
+pub fn rss(pid: u32) -> (u64, u64) {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    let kb = |key: &str| -> u64 {
+        let line = status.lines().find(|l| l.starts_with(key)).unwrap();
+        line.split_whitespace()
+            .nth(1)
+            .unwrap()
+            .parse::<u64>()
+            .unwrap()
+            << 10
+    };
+    (kb("VmRSS:"), kb("VmHWM:"))
+}
+
+pub fn reset_peak(pid: u32) {
+    // "5" resets the peak resident set size (proc(5)).
+    std::fs::write(format!("/proc/{pid}/clear_refs"), "5").unwrap();
+}
+
+/// The Cornell box with a height-field mesh of `n` x `n` quads (2 n^2 triangles) on its floor.
+fn cornell_with_mesh(n: usize) -> Value {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell.json"))
+        .unwrap();
+    let mut scene: Value = serde_json::from_str(&text).unwrap();
+    let mut positions = Vec::with_capacity((n + 1) * (n + 1));
+    for j in 0..=n {
+        for i in 0..=n {
+            let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+            let h = 0.05 * ((u * 40.0).sin() * (v * 40.0).cos() + 1.0);
+            let r = |x: f64| (x * 1e4).round() / 1e4;
+            positions.push(json!([r(1.0 + 3.5 * u), r(h), r(1.0 + 3.5 * v)]));
+        }
+    }
+    let mut triangles = Vec::with_capacity(2 * n * n);
+    let at = |i: usize, j: usize| j * (n + 1) + i;
+    for j in 0..n {
+        for i in 0..n {
+            triangles.push(json!([at(i, j), at(i + 1, j), at(i + 1, j + 1)]));
+            triangles.push(json!([at(i, j), at(i + 1, j + 1), at(i, j + 1)]));
+        }
+    }
+    scene["objects"].as_array_mut().unwrap().push(json!({
+        "type": "mesh", "material": "white", "positions": positions, "triangles": triangles
+    }));
+    scene
+}
+
+/// Run `job` on `s`; the growth of the server's peak memory over its memory before the job,
+/// the job's estimate, and the memory held after it finished (over before).
+fn measure(s: &Server, job: Value) -> (u64, u64, i64) {
+    let (before, _) = rss(s.pid());
+    let id = submit(s, &s.admin, job);
+    reset_peak(s.pid());
+    expect_done(s, &s.admin, id);
+    let (after, peak) = rss(s.pid());
+    let (_, v) = get(s, &s.admin, &format!("/api/jobs/{id}"));
+    let estimate = v["memory_estimate_bytes"].as_u64().unwrap();
+    (
+        peak.saturating_sub(before),
+        estimate,
+        after as i64 - before as i64,
+    )
+}
+
+#[test]
+fn the_memory_estimate_bounds_the_peak_of_the_largest_accepted_jobs() {
+    let dir = tempfile::tempdir().unwrap();
+    // Limits small enough for a test, the same code path as the defaults.
+    let s = Server::start(
+        dir.path(),
+        &[
+            "--max-pixels",
+            "4194304",
+            "--max-photons",
+            "2000000",
+            "--max-triangles",
+            "250000",
+            "--cache-mb",
+            "0",
+        ],
+    );
+    let mesh = cornell_with_mesh(350); // 245,000 triangles
+    let jobs = [
+        (
+            "raytrace, mesh",
+            json!({"scene": mesh, "params": {"integrator": "raytrace",
+            "width": 2048, "height": 2048, "spp": 1}}),
+        ),
+        (
+            "photon",
+            json!({"scene_name": "cornell_mirror_glass", "params": {
+            "width": 1024, "height": 1024, "photons": 2000000, "caustic_photons": 2000000,
+            "spp": 1, "gather_rays": 0}}),
+        ),
+        (
+            "ppm",
+            json!({"scene_name": "cornell_mirror_glass", "params": {"integrator": "ppm",
+            "width": 1024, "height": 1024, "photons": 2000000, "caustic_photons": 2000000,
+            "iterations": 2, "spp": 1}}),
+        ),
+        // The largest image, with few photons: what grows with the pixels (film, pass
+        // sums, the saved state and previews).
+        (
+            "ppm, pixels",
+            json!({"scene_name": "cornell", "params": {"integrator": "ppm",
+            "width": 2048, "height": 2048, "photons": 10000, "caustic_photons": 0,
+            "iterations": 3, "spp": 1}}),
+        ),
+        (
+            "photon, pixels",
+            json!({"scene_name": "cornell", "params": {
+            "width": 2048, "height": 2048, "photons": 10000, "caustic_photons": 0,
+            "spp": 1, "gather_rays": 0}}),
+        ),
+    ];
+    let mut report = Vec::new();
+    for (name, job) in jobs {
+        let (grew, estimate, held) = measure(&s, job);
+        report.push(format!(
+            "{name}: peak +{} MiB, estimate {} MiB, held after {} MiB",
+            grew >> 20,
+            estimate >> 20,
+            held >> 20
+        ));
+        assert!(grew <= estimate, "{}", report.join("; "));
+        // Given back: what stays is a small fraction of the peak.
+        assert!(
+            held < (grew / 4) as i64 + (16 << 20),
+            "{}",
+            report.join("; ")
+        );
+    }
+    eprintln!("{}", report.join("\n"));
+}
