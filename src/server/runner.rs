@@ -242,7 +242,7 @@ fn execute(
             render_progressive(
                 app,
                 id,
-                &scene_json,
+                scene_json,
                 &scene,
                 &params,
                 reference.as_ref(),
