@@ -141,3 +141,35 @@ fn the_memory_estimate_bounds_the_peak_of_the_largest_accepted_jobs() {
     }
     eprintln!("{}", report.join("\n"));
 }
+
+#[test]
+fn uploaded_scenes_stay_in_the_store_not_in_the_servers_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell.json"))
+        .unwrap();
+    let mut scene: Value = serde_json::from_str(&text).unwrap();
+    // 6 MB of scene text a job (a description is kept with the scene, like a mesh).
+    scene["description"] = json!("d".repeat(6 << 20));
+    let job = json!({"scene": scene, "params": {"integrator": "raytrace", "width": 8,
+        "height": 8, "spp": 1}});
+    // The allocator's working set settles over the first few jobs.
+    for _ in 0..4 {
+        run_to_done(&s, &s.admin, job.clone());
+    }
+    let (before, _) = rss(s.pid());
+    for _ in 0..12 {
+        run_to_done(&s, &s.admin, job.clone());
+    }
+    let (status, list) = get(&s, &s.admin, "/api/jobs");
+    assert_eq!(status, 200);
+    assert_eq!(list["jobs"].as_array().unwrap().len(), 16);
+    let (after, _) = rss(s.pid());
+    let grew = after as i64 - before as i64;
+    // Held in memory, twelve scenes would be 72 MiB.
+    assert!(
+        grew < 24 << 20,
+        "twelve more 6 MB scenes grew the server by {} MiB",
+        grew >> 20
+    );
+}
