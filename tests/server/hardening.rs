@@ -416,3 +416,29 @@ fn user_add_before_the_first_serve_creates_the_store_and_the_admin() {
     let (status, me) = get(&s, &alice, "/api/me");
     assert_eq!((status, &me["name"]), (200, &json!("alice")), "{me}");
 }
+
+#[test]
+fn cancel_stops_the_most_expensive_camera_pass_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    // One pixel sample of this job is 1 + 256 rays, and every tile holds 4096 samples a
+    // pixel: minutes a tile, so cancel must act inside a tile.
+    let id = submit(
+        &s,
+        &s.admin,
+        json!({"scene_name": "cornell", "params": {"width": 64, "height": 64, "spp": 4096,
+               "gather_rays": 256, "photons": 1000, "caustic_photons": 0}}),
+    );
+    // Wait until the camera pass runs (its progress events name the phase).
+    let evs = follow(&s, &s.admin, id, |e| {
+        e.data["phase"] == "render" || e.data["status"] != "running" && e.data["status"] != "queued"
+    });
+    assert_eq!(evs.last().unwrap().data["phase"], "render", "{evs:?}");
+    let t0 = std::time::Instant::now();
+    let (status, v) = delete(&s, &s.admin, id);
+    let took = t0.elapsed();
+    assert_eq!(status, 200, "{v}");
+    // DELETE waits (at most a few seconds) for the render to stop: it stopped in that time.
+    assert_eq!(v["status"], "cancelled", "{v} after {took:?}");
+    eprintln!("cancelled inside the camera pass; DELETE answered after {took:?}");
+}
