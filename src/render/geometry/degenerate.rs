@@ -11,11 +11,12 @@
 //!
 //! [`stalls_ploc`] predicts this in O(n log n) by a dry run of PLOC's simplest form
 //! (neighbour distance 1, the rule obvhs itself applies to its first sweeps) and
-//! [`build_top_down`] builds such scenes top-down instead (binned SAH, Wald 2007, with a
-//! median split whenever SAH cannot separate the centroids or would split off less than a
-//! sixteenth), whose depth, and so its cost, stays O(n log n) whatever the boxes. Other
-//! scenes keep the PLOC build and so their BVH, bit for bit.
+//! [`build_top_down`] builds such scenes top-down instead, by median splits: depth
+//! ceil(log2 n) and cost O(n log n) whatever the boxes. Other scenes keep the PLOC build
+//! and so their BVH, bit for bit. The dry run is a model of PLOC, not PLOC: input that
+//! stalls only PLOC's wider neighbour search would go unnoticed (none is known).
 
+use glam::Vec3A;
 use obvhs::{
     aabb::Aabb,
     bvh2::{Bvh2, DEFAULT_MAX_STACK_DEPTH, node::Bvh2Node},
@@ -26,6 +27,7 @@ use obvhs::{
 const SMALL: usize = 64;
 
 /// A sweep that merges fewer than one pair per this many clusters counts as stalled.
+/// (Ordinary meshes merge about one pair per four clusters a sweep.)
 const MIN_MERGE_FRACTION: usize = 16;
 
 /// Whether PLOC would stall on these boxes: some sweep of the dry run over more than
@@ -82,12 +84,13 @@ fn morton_sorted(boxes: &[Aabb]) -> Vec<Aabb> {
     keyed.into_iter().map(|(_, i)| boxes[i as usize]).collect()
 }
 
-/// SAH bins per split.
-const BINS: usize = 16;
-
-/// A binary BVH over `boxes` built top-down, one primitive a leaf (as PLOC leaves them: the
-/// wide BVH's conversion then gathers leaves by cost). Children are stored after their
-/// parent, in adjacent slots, as obvhs expects.
+/// A binary BVH over `boxes` built top-down by object median splits on the centroids'
+/// widest axis, one primitive a leaf (as PLOC leaves them: the wide BVH's conversion then
+/// gathers leaves by cost). Median splits keep the depth at ceil(log2 n), which matters
+/// beyond speed: obvhs traverses its wide BVH with a stack of 32 entries that silently
+/// drops nodes past that depth, and a surface-area split of such boxes can peel them off
+/// one at a time. Children are stored after their parent, in adjacent slots, as obvhs
+/// expects.
 pub fn build_top_down(boxes: &[Aabb]) -> Bvh2 {
     let n = boxes.len();
     let mut bvh = Bvh2 {
@@ -97,7 +100,7 @@ pub fn build_top_down(boxes: &[Aabb]) -> Bvh2 {
     if n == 0 {
         return bvh;
     }
-    let centers: Vec<glam::Vec3A> = boxes.iter().map(Aabb::center).collect();
+    let centers: Vec<Vec3A> = boxes.iter().map(Aabb::center).collect();
     let mut order: Vec<u32> = (0..n as u32).collect();
     bvh.nodes.reserve(2 * n - 1);
     bvh.nodes.push(Bvh2Node::default());
@@ -114,7 +117,7 @@ pub fn build_top_down(boxes: &[Aabb]) -> Bvh2 {
             bvh.nodes[slot] = Bvh2Node::new(bounds, 1, items[0]);
             continue;
         }
-        let mid = lo + split(items, &centers, boxes);
+        let mid = lo + median_split(items, &centers);
         let first = bvh.nodes.len();
         bvh.nodes.push(Bvh2Node::default());
         bvh.nodes.push(Bvh2Node::default());
@@ -127,75 +130,73 @@ pub fn build_top_down(boxes: &[Aabb]) -> Bvh2 {
     bvh
 }
 
-/// Partition `items` (at least two) and return the size of the left part, in 1..len.
-fn split(items: &mut [u32], centers: &[glam::Vec3A], boxes: &[Aabb]) -> usize {
-    let n = items.len();
+/// Partition `items` (at least two) about the median of their centroids along the widest
+/// axis (ties by index: deterministic) and return the size of the left half.
+fn median_split(items: &mut [u32], centers: &[Vec3A]) -> usize {
     let cb = items.iter().fold(Aabb::empty(), |mut b, &i| {
         b.extend(centers[i as usize]);
         b
     });
     let axis = cb.largest_axis();
-    let (c_lo, extent) = (cb.min[axis], cb.diagonal()[axis]);
-    let median = |items: &mut [u32]| {
-        let key = |i: &u32| (centers[*i as usize][axis], *i);
-        items.select_nth_unstable_by(n / 2, |a, b| {
-            let (ka, kb) = (key(a), key(b));
-            ka.0.total_cmp(&kb.0).then(ka.1.cmp(&kb.1))
-        });
-        n / 2
-    };
-    if !(extent > 0.0) {
-        return median(items);
+    let mid = items.len() / 2;
+    items.select_nth_unstable_by(mid, |&a, &b| {
+        let (ca, cb) = (centers[a as usize][axis], centers[b as usize][axis]);
+        ca.total_cmp(&cb).then(a.cmp(&b))
+    });
+    mid
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit_box(c: Vec3A, half: f32) -> Aabb {
+        Aabb::new(c - half, c + half)
     }
-    let bin_of = |i: u32| {
-        let t = (centers[i as usize][axis] - c_lo) / extent * BINS as f32;
-        (t as usize).min(BINS - 1)
-    };
-    let mut count = [0usize; BINS];
-    let mut bin_box = [Aabb::empty(); BINS];
-    for &i in items.iter() {
-        let b = bin_of(i);
-        count[b] += 1;
-        bin_box[b] = bin_box[b].union(&boxes[i as usize]);
-    }
-    // SAH over the BINS - 1 planes: area x count on each side.
-    let mut right_cost = [0.0f32; BINS];
-    let (mut acc, mut k) = (Aabb::empty(), 0);
-    for b in (1..BINS).rev() {
-        acc = acc.union(&bin_box[b]);
-        k += count[b];
-        right_cost[b] = if k > 0 {
-            acc.half_area() * k as f32
-        } else {
-            0.0
-        };
-    }
-    let (mut acc, mut k) = (Aabb::empty(), 0);
-    let mut best = (f32::INFINITY, 0usize, 0usize);
-    for b in 1..BINS {
-        acc = acc.union(&bin_box[b - 1]);
-        k += count[b - 1];
-        let c = if k > 0 {
-            acc.half_area() * k as f32
-        } else {
-            0.0
-        } + right_cost[b];
-        if k > 0 && k < n && c < best.0 {
-            best = (c, b, k);
+
+    /// The depth of the tree under node `i`, checking that each node bounds its children.
+    fn depth(bvh: &Bvh2, i: usize) -> usize {
+        let node = &bvh.nodes[i];
+        if node.prim_count > 0 {
+            return 1;
         }
-    }
-    let (_, plane, left) = best;
-    if left * MIN_MERGE_FRACTION < n || (n - left) * MIN_MERGE_FRACTION < n {
-        return median(items);
-    }
-    // Stable-enough in-place partition: bins below `plane` to the left.
-    let mut l = 0;
-    for j in 0..n {
-        if bin_of(items[j]) < plane {
-            items.swap(l, j);
-            l += 1;
+        let f = node.first_index as usize;
+        for c in [f, f + 1] {
+            let child = bvh.nodes[c].aabb();
+            assert_eq!(node.aabb().union(child), *node.aabb(), "node {i} child {c}");
         }
+        1 + depth(bvh, f).max(depth(bvh, f + 1))
     }
-    debug_assert_eq!(l, left);
-    l
+
+    #[test]
+    fn copies_and_nested_boxes_stall_ploc_and_a_grid_does_not() {
+        let copies = vec![unit_box(Vec3A::ZERO, 1.0); 5000];
+        let nested: Vec<Aabb> = (0..5000)
+            .map(|i| unit_box(Vec3A::ZERO, 1.0 + i as f32 * 1e-3))
+            .collect();
+        let grid: Vec<Aabb> = (0..5000)
+            .map(|i| unit_box(Vec3A::new((i % 70) as f32, (i / 70) as f32, 0.0), 0.3))
+            .collect();
+        assert!(stalls_ploc(&copies));
+        assert!(stalls_ploc(&nested));
+        assert!(!stalls_ploc(&grid));
+    }
+
+    /// Every primitive in exactly one leaf, boxes nested, and depth ceil(log2 n) + 1.
+    #[test]
+    fn top_down_tree_is_balanced_and_holds_every_primitive_once() {
+        let n = 10_000;
+        let boxes: Vec<Aabb> = (0..n)
+            .map(|i| unit_box(Vec3A::splat((i % 3) as f32), 1.0 + (i % 5) as f32))
+            .collect();
+        let bvh = build_top_down(&boxes);
+        assert_eq!(bvh.nodes.len(), 2 * n - 1);
+        let mut seen = vec![0u32; n];
+        for node in bvh.nodes.iter().filter(|b| b.prim_count > 0) {
+            seen[node.first_index as usize] += 1;
+            assert_eq!(*node.aabb(), boxes[node.first_index as usize]);
+        }
+        assert!(seen.iter().all(|&k| k == 1));
+        assert_eq!(depth(&bvh, 0), 15);
+    }
 }
