@@ -46,6 +46,7 @@ impl Bars {
 
 fn label(phase: Phase) -> &'static str {
     match phase {
+        Phase::BuildScene => "scene",
         Phase::PhotonTrace => "photons",
         Phase::BuildMaps => "kd-trees",
         Phase::Precompute => "irradiance",

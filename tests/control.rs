@@ -5,7 +5,9 @@ use std::path::Path;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use photonbox::render::{Cancelled, Control, Phase, Progress, RenderParams, Scene, render};
+use photonbox::render::{
+    Cancelled, Control, Phase, Progress, RenderParams, Scene, SceneDesc, render,
+};
 
 fn scene1() -> Scene {
     Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json"))
@@ -95,4 +97,44 @@ fn cancel_stops_every_phase() {
         progress: None,
     };
     assert_eq!(render(&scene, &params(), &control).err(), Some(Cancelled));
+}
+
+/// Scene building reports its own phase to completion, and a cancel from inside it (after
+/// its first object) stops it with `Err(Cancelled)`.
+#[test]
+fn scene_building_reports_progress_and_honours_cancel() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json");
+    let desc = SceneDesc::load(&path).unwrap();
+    let log = Mutex::new(Vec::<Progress>::new());
+    let cb = |p: Progress| log.lock().unwrap().push(p);
+    let control = Control {
+        cancel: None,
+        progress: Some(&cb),
+    };
+    assert!(Scene::build_with(&desc, &control).is_ok());
+    let log = log.into_inner().unwrap();
+    assert!(log.iter().all(|p| p.phase == Phase::BuildScene));
+    assert!(log.len() >= 3, "{} reports", log.len());
+    assert!(log.windows(2).all(|w| w[0].done <= w[1].done));
+    let last = log.last().unwrap();
+    assert_eq!(last.done, last.total);
+
+    let cancel = AtomicBool::new(false);
+    let reports = Mutex::new(0u64);
+    let cb = |p: Progress| {
+        if p.done > 0 {
+            cancel.store(true, Ordering::Relaxed);
+        }
+        *reports.lock().unwrap() = p.done;
+    };
+    let control = Control {
+        cancel: Some(&cancel),
+        progress: Some(&cb),
+    };
+    assert_eq!(Scene::build_with(&desc, &control).err(), Some(Cancelled));
+    assert_eq!(
+        *reports.lock().unwrap(),
+        1,
+        "stopped after its first object"
+    );
 }

@@ -66,6 +66,33 @@ fn resumed_cli_render_gives_the_same_bytes() {
     assert!(resumed.0 == full.0, "PNG bytes differ after resuming");
     assert!(resumed.1 == full.1, "EXR bytes differ after resuming");
 
+    // A state with one flipped bit (here in the pixel sum, near the end) is not resumed: the
+    // CLI says it is corrupt and renders from pass 0, which gives the full render's bytes.
+    let mut bytes = std::fs::read(&state).unwrap();
+    let at = bytes.len() - 40;
+    bytes[at] ^= 0x10;
+    let corrupt = d("corrupt.ppm");
+    std::fs::write(&corrupt, &bytes).unwrap();
+    let (png, exr) = (d("again.png"), d("again.exr"));
+    let mut args = vec!["render", &scene, "-o", s(&png), "--exr", s(&exr)];
+    args.extend_from_slice(PPM);
+    args.extend_from_slice(&["--iterations", "5", "--resume", s(&corrupt)]);
+    let o = run(&args);
+    ok(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("corrupt state file") && err.contains("from pass 0"),
+        "{err}"
+    );
+    assert!(
+        std::fs::read(png).unwrap() == full.0,
+        "PNG bytes differ from pass 0's"
+    );
+    assert!(
+        std::fs::read(exr).unwrap() == full.1,
+        "EXR bytes differ from pass 0's"
+    );
+
     // A state resumes only the render it was saved for.
     let mut args = vec!["render", &scene, "-o", "/dev/null"];
     args.extend_from_slice(PPM);

@@ -10,7 +10,7 @@ use clap::{Args, ValueEnum};
 
 use crate::{bad, progress};
 use photonbox::render::accuracy::ImageError;
-use photonbox::render::ppm::{self, PpmOptions, PpmState, Stop};
+use photonbox::render::ppm::{self, PpmOptions, PpmState, StateError, Stop};
 use photonbox::render::{
     self, Control, EffectSwitches, Image, IntegratorKind, PhotonStore, RenderOutput, RenderParams,
     Scene, output,
@@ -223,10 +223,19 @@ pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
         Some(p) => {
             let f = std::fs::File::open(p)
                 .map_err(|e| bad(format!("--resume {}: {e}", p.display())))?;
-            Some(
-                PpmState::load(std::io::BufReader::new(f))
-                    .map_err(|e| bad(format!("--resume {}: {e}", p.display())))?,
-            )
+            match PpmState::load(std::io::BufReader::new(f)) {
+                Ok(state) => Some(state),
+                // A damaged state cannot be resumed, but the render it was for can still
+                // be made: from the start, and saying so.
+                Err(e @ StateError::Corrupt { .. }) => {
+                    eprintln!(
+                        "photonbox: warning: --resume {}: {e}; starting again from pass 0",
+                        p.display()
+                    );
+                    None
+                }
+                Err(e) => return Err(bad(format!("--resume {}: {e}", p.display()))),
+            }
         }
         None => None,
     };

@@ -7,6 +7,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 /// The phases of a render, in order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Phase {
+    /// Building the scene from its description (primitives, BVH, analyses).
+    BuildScene,
     /// Tracing photons from the lights.
     PhotonTrace,
     /// Balancing the kd-trees.
@@ -22,6 +24,7 @@ pub enum Phase {
 impl Phase {
     pub fn name(self) -> &'static str {
         match self {
+            Phase::BuildScene => "build_scene",
             Phase::PhotonTrace => "photon_trace",
             Phase::BuildMaps => "build_maps",
             Phase::Precompute => "precompute",

@@ -57,30 +57,46 @@ pub struct FilmOutput {
     pub nonfinite_samples: u64,
 }
 
-/// The mean of a pixel's finite samples, and how many were not finite: those are dropped
-/// (and reported as `nonfinite_samples`) rather than poisoning the pixel. No finite sample
-/// leaves the pixel black.
-fn pixel_mean(samples: impl Iterator<Item = Rgb>) -> (Rgb, u32) {
-    let (mut sum, mut good, mut bad) = (Rgb::ZERO, 0u32, 0u32);
-    for l in samples {
+/// A pixel's samples so far: the sum of the finite ones and how many were not finite. Those
+/// are dropped (and reported as `nonfinite_samples`) rather than poisoning the pixel. No
+/// finite sample leaves the pixel black.
+#[derive(Default)]
+struct PixelSum {
+    sum: Rgb,
+    good: u32,
+    bad: u32,
+}
+
+impl PixelSum {
+    #[inline]
+    fn add(&mut self, l: Rgb) {
         if l.is_finite() {
-            sum += l;
-            good += 1;
+            self.sum += l;
+            self.good += 1;
         } else {
-            bad += 1;
+            self.bad += 1;
         }
     }
-    let mean = if good > 0 {
-        sum / good as f32
-    } else {
-        Rgb::ZERO
-    };
-    (mean, bad)
+
+    fn mean(&self) -> Rgb {
+        if self.good > 0 {
+            self.sum / self.good as f32
+        } else {
+            Rgb::ZERO
+        }
+    }
 }
 
 /// Render every pixel with `spp` jittered samples. Sample j of pixel i draws its random
 /// numbers from stream (seed, camera, i * spp + j) alone, so the image is bit-identical
 /// whatever the number of threads.
+///
+/// The cancel flag is read after every sample: a tile of 4096 samples a pixel with 512
+/// gather rays each takes minutes, and cancel must stop a render within a second whatever
+/// its parameters. (The shader also reads it within a sample's final gather; a sample cut
+/// short there is caught by the check after it, so no cut sample reaches an image.) The
+/// check is one relaxed atomic load; a sample is at least a camera ray. Progress is counted
+/// in pixels, a report a tile row.
 pub fn render_film(
     shader: &Shader,
     camera: &Camera,
@@ -92,7 +108,7 @@ pub fn render_film(
     let tiles_x = w.div_ceil(TILE);
     let tiles_y = h.div_ceil(TILE);
     let n_tiles = tiles_x * tiles_y;
-    let tracker = control.tracker(Phase::Render, n_tiles as u64);
+    let tracker = control.tracker(Phase::Render, w as u64 * h as u64);
     let dropped = AtomicU64::new(0);
     let tiles: Vec<Vec<[f32; 3]>> = (0..n_tiles)
         .into_par_iter()
@@ -111,22 +127,24 @@ pub fn render_film(
                 for i in 0..x1 - x0 {
                     let x = if forward { x0 + i } else { x1 - 1 - i };
                     let pixel = (y as u64) * w as u64 + x as u64;
-                    let samples = (0..spp).map(|j| {
+                    let mut px = PixelSum::default();
+                    for j in 0..spp {
                         let mut s =
                             Sampler::new(seed, Stream::Camera, pixel * spp as u64 + j as u64);
                         let jitter = s.next_2d();
                         let ray = camera.ray(x as f32 + jitter.x, y as f32 + jitter.y);
-                        shader.camera_ray(&ray, &mut s, scratch)
-                    });
-                    let (v, nonfinite) = pixel_mean(samples);
-                    bad += nonfinite as u64;
-                    out[(y - y0) as usize * tw + (x - x0) as usize] = v.to_array();
+                        let l = shader.camera_ray(&ray, &mut s, scratch);
+                        control.check()?;
+                        px.add(l);
+                    }
+                    bad += px.bad as u64;
+                    out[(y - y0) as usize * tw + (x - x0) as usize] = px.mean().to_array();
                 }
+                tracker.advance(tw as u64);
             }
             if bad > 0 {
                 dropped.fetch_add(bad, Ordering::Relaxed);
             }
-            tracker.advance(1);
             Ok(out)
         })
         .collect::<Result<_, Cancelled>>()?;
@@ -151,13 +169,19 @@ pub fn render_film(
 mod tests {
     use super::*;
 
+    fn mean_of(samples: &[Rgb]) -> (Rgb, u32) {
+        let mut px = PixelSum::default();
+        samples.iter().for_each(|&l| px.add(l));
+        (px.mean(), px.bad)
+    }
+
     #[test]
     fn non_finite_samples_are_dropped_and_counted() {
         let nan = Rgb::new(f32::NAN, 0.0, 0.0);
         let inf = Rgb::new(0.0, f32::INFINITY, 0.0);
-        let (m, bad) = pixel_mean([Rgb::ONE, nan, Rgb::splat(3.0), inf].into_iter());
+        let (m, bad) = mean_of(&[Rgb::ONE, nan, Rgb::splat(3.0), inf]);
         assert_eq!((m, bad), (Rgb::splat(2.0), 2));
-        let (m, bad) = pixel_mean([nan, nan].into_iter());
+        let (m, bad) = mean_of(&[nan, nan]);
         assert_eq!((m, bad), (Rgb::ZERO, 2));
     }
 }

@@ -122,6 +122,7 @@ pub fn render_with_maps(
         global: cache.as_ref().map(Density::Cached),
         gather_rays: params.gather_rays,
         max_depth: params.max_depth,
+        control: *control,
     };
     let t_render = Instant::now();
     let film = render_film(&shader, &camera, params.spp, params.seed, control)?;

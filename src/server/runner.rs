@@ -134,7 +134,7 @@ fn phase_weights(p: &RenderParams, pixels: u64) -> [f64; 4] {
 
 fn phase_index(phase: Phase) -> usize {
     match phase {
-        Phase::PhotonTrace => 0,
+        Phase::BuildScene | Phase::PhotonTrace => 0,
         Phase::BuildMaps => 1,
         Phase::Precompute => 2,
         Phase::Render | Phase::Passes => 3,

@@ -9,10 +9,11 @@ use std::time::Duration;
 use obvhs::{
     Boundable, BvhBuildParams,
     aabb::Aabb,
-    cwbvh::{CwBvh, builder::build_cwbvh},
+    cwbvh::{CwBvh, builder::build_cwbvh, bvh2_to_cwbvh::bvh2_to_cwbvh},
     ray::{Ray as BvhRay, RayHit},
 };
 
+use super::degenerate;
 use super::flat::Flat;
 use super::{Hit, PrimId, Primitive, Ray, shapes::ShapeHit};
 
@@ -40,6 +41,26 @@ pub struct Accel {
     bvh: Option<CwBvh>,
     flat: Option<Flat>,
     prims: Vec<Primitive>,
+    /// Built top-down because PLOC would have stalled (see [`build_bvh`]).
+    top_down: bool,
+}
+
+/// The wide BVH over `prims` (more than [`FLAT_MAX`]): PLOC as obvhs builds it, unless its
+/// dry run says PLOC would stall on these boxes (`degenerate.rs`: copies of one triangle,
+/// nested ones; quadratic there), then a top-down build, whose cost is O(n log n) whatever
+/// the boxes. Both are deterministic; only degenerate scenes take the second.
+fn build_bvh(prims: &[Primitive]) -> (CwBvh, bool) {
+    let params = BvhBuildParams::medium_build();
+    let boxes: Vec<Aabb> = prims.iter().map(Boundable::aabb).collect();
+    if degenerate::stalls_ploc(&boxes) {
+        let bvh2 = degenerate::build_top_down(&boxes);
+        // No reinsertion pass: its search for a better place for a node prunes by box
+        // overlap, which is what such scenes have everywhere.
+        let max_leaf = params.max_prims_per_leaf.clamp(1, 3);
+        return (bvh2_to_cwbvh(&bvh2, max_leaf, true, false), true);
+    }
+    let mut build_time = Duration::ZERO;
+    (build_cwbvh(prims, params, &mut build_time), false)
 }
 
 impl Accel {
@@ -50,10 +71,10 @@ impl Accel {
                 bvh: None,
                 flat: Some(Flat::new(&shapes)),
                 prims,
+                top_down: false,
             };
         }
-        let mut build_time = Duration::ZERO;
-        let mut bvh = build_cwbvh(&prims, BvhBuildParams::medium_build(), &mut build_time);
+        let (mut bvh, top_down) = build_bvh(&prims);
         let ordered: Vec<Primitive> = bvh
             .primitive_indices
             .iter()
@@ -67,9 +88,16 @@ impl Accel {
             bvh: Some(bvh),
             flat: None,
             prims: ordered,
+            top_down,
         }
     }
 
+    /// Whether the BVH was built top-down for degenerate geometry rather than by PLOC.
+    pub fn built_top_down(&self) -> bool {
+        self.top_down
+    }
+
+    /// The primitives in leaf order (a primitive's id is its index here).
     pub fn prims(&self) -> &[Primitive] {
         &self.prims
     }

@@ -9,6 +9,7 @@
 //! invariant under scaling and translation.
 
 mod accel;
+mod degenerate;
 mod flat;
 mod lanes;
 mod packet;

@@ -5,6 +5,7 @@ use std::f32::consts::FRAC_1_PI;
 use glam::Vec3A;
 
 use super::{Plan, VertexPlan};
+use crate::render::control::Control;
 use crate::render::geometry::{Hit, Ray, Surface, SurfacePoint, spawn_ray, spawn_ray_to};
 use crate::render::material::{Material, SpecularBranch, Transport};
 use crate::render::math::{Frame, Rgb, luminance, reflect};
@@ -26,7 +27,13 @@ pub struct Shader<'a> {
     pub global: Option<Density<'a>>,
     pub gather_rays: u32,
     pub max_depth: u32,
+    /// Read within long final gathers (see [`GATHER_CHECK`]).
+    pub control: Control<'a>,
 }
+
+/// Gather rays between two reads of the cancel flag: 65,536 gather rays (the limit) at one
+/// point take a good fraction of a second, and cancel must stop a render within one.
+const GATHER_CHECK: u32 = 64;
 
 /// Per-thread scratch memory.
 #[derive(Default)]
@@ -268,7 +275,12 @@ impl Shader<'_> {
             split: false,
         };
         let mut sum = Rgb::ZERO;
-        for _ in 0..self.gather_rays {
+        for i in 0..self.gather_rays {
+            // Cut short when cancelled: `render_film` checks the flag after the sample and
+            // drops it, so what is returned then is never used.
+            if i % GATHER_CHECK == GATHER_CHECK - 1 && self.control.check().is_err() {
+                break;
+            }
             let wi = frame.to_world(cosine_hemisphere(s.next_2d()));
             sum += self.trace(&spawn_ray(sp, wi), seg, s, scratch);
         }

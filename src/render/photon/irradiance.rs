@@ -86,12 +86,14 @@ impl IrradianceCache {
             .unzip();
         let scale = IRRADIANCE_STRIDE as f32 / (IRRADIANCE_STRIDE - 1) as f32;
         let tracker = control.tracker(Phase::Precompute, picks.len() as u64);
-        const CHUNK: usize = 1024;
+        // Points per work item (the cancel grain): 1024 at k <= 16, fewer for larger k, as
+        // a k-NN search costs about k (k goes to 100,000: 1024 of those are seconds).
+        let chunk = (16 * 1024 / k.max(1)).clamp(1, 1024);
         // The grid depends on the points' positions only: it is sorted while the estimates
         // are made.
         let estimate = || {
             picks
-                .par_chunks(CHUNK)
+                .par_chunks(chunk)
                 .map_init(KnnScratch::default, |scratch, chunk| {
                     control.check()?;
                     let out = chunk

@@ -30,6 +30,12 @@ pub struct TargetedDirection {
 /// Relative margin on the bounding spheres against f32 rounding at their rims.
 const MARGIN: f64 = 1e-4;
 
+/// More specular objects than this are aimed at as one: the sphere bounding all their
+/// spheres. Each photon's pdf reads every target, so thousands of mirror triangles (each
+/// its own object) would make tracing cost photons x objects; one bound keeps it O(1) and
+/// still covers every direction toward a specular object, so the map stays unbiased.
+const MAX_TARGETS: usize = 32;
+
 /// Relative slack on the squared radii when culling photons that cannot meet a target.
 const CULL_SLACK: f32 = 1e-3;
 
@@ -73,6 +79,9 @@ impl CausticTargets {
             };
             let r = r * (1.0 + MARGIN) + MARGIN * (c - origin).abs().max_element();
             spheres.push(((c - origin).as_vec3a(), r as f32));
+        }
+        if spheres.len() > MAX_TARGETS {
+            spheres = vec![bounding_sphere(&spheres)];
         }
         CausticTargets { spheres }
     }
@@ -151,6 +160,20 @@ impl CausticTargets {
     }
 }
 
+/// A sphere holding all of `spheres` (centred on their boxes' centre; not the smallest).
+fn bounding_sphere(spheres: &[(Vec3A, f32)]) -> (Vec3A, f32) {
+    let (lo, hi) = spheres.iter().fold(
+        (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &(c, r)| (lo.min(c - r), hi.max(c + r)),
+    );
+    let c = (lo + hi) * 0.5;
+    let r = spheres
+        .iter()
+        .map(|&(ci, ri)| (ci - c).length() + ri)
+        .fold(0.0f32, f32::max);
+    (c, r * (1.0 + MARGIN as f32))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -160,6 +183,18 @@ mod tests {
         CausticTargets {
             spheres: spheres.to_vec(),
         }
+    }
+
+    #[test]
+    fn many_targets_become_one_bound_holding_them_all() {
+        let many: Vec<(Vec3A, f32)> = (0..100)
+            .map(|i| (Vec3A::new(i as f32, (i % 3) as f32, 0.0), 0.25))
+            .collect();
+        let (c, r) = bounding_sphere(&many);
+        for &(ci, ri) in &many {
+            assert!((ci - c).length() + ri <= r, "{ci} {ri} outside {c} {r}");
+        }
+        assert!(r < 51.0, "{r}");
     }
 
     /// E[1 / pdf] over the mixture's samples is the solid angle of the union of the cones:

@@ -68,9 +68,20 @@ pub struct TraceOutput {
     pub unit: f32,
 }
 
-/// Photons per parallel work item: large enough to amortise scheduling, small enough for
-/// prompt cancellation and smooth progress.
+/// Photons per parallel work item at paths of at most [`CHUNK_DEPTH`] bounces: large enough
+/// to amortise scheduling, small enough for prompt cancellation and smooth progress.
 const CHUNK: u64 = 4096;
+
+/// Longer paths (`max_depth` goes to 1024; a closed box of mirrors keeps them all) take
+/// proportionally fewer photons a chunk, so that a chunk's work, and with it the delay of a
+/// cancel, stays bounded (up to this depth, the default, chunks are of [`CHUNK`]). The maps
+/// do not depend on the chunking: a chunk's photons come back in path order.
+const CHUNK_DEPTH: u64 = 32;
+
+/// Photons per work item for paths of up to `max_depth` bounces.
+fn chunk_len(max_depth: u32) -> u64 {
+    (CHUNK * CHUNK_DEPTH / (max_depth as u64).max(CHUNK_DEPTH)).max(1)
+}
 
 /// Trace `emitted` photons for one map. Photon i uses random stream (seed, map, i) only, so
 /// the result is the same whatever the thread count.
@@ -109,12 +120,13 @@ fn trace(
         seed,
         stream,
     };
-    let chunks = emitted.div_ceil(CHUNK);
+    let chunk = chunk_len(max_depth);
+    let chunks = emitted.div_ceil(chunk);
     let parts: Vec<Vec<Photon>> = (0..chunks)
         .into_par_iter()
         .map(|c| {
             control.check()?;
-            let (start, end) = (c * CHUNK, ((c + 1) * CHUNK).min(emitted));
+            let (start, end) = (c * chunk, ((c + 1) * chunk).min(emitted));
             let out = trace_chunk(&setup, start..end);
             tracker.advance(end - start);
             Ok(out)
@@ -289,6 +301,15 @@ mod tests {
 
     use super::*;
     use crate::render::math::Rgb;
+
+    #[test]
+    fn chunks_shrink_with_the_path_length() {
+        assert_eq!(chunk_len(1), CHUNK);
+        assert_eq!(chunk_len(32), CHUNK);
+        assert_eq!(chunk_len(64), CHUNK / 2);
+        assert_eq!(chunk_len(1024), 128);
+        assert_eq!(chunk_len(u32::MAX), 1);
+    }
 
     /// Photons stored by interleaved paths come back grouped by path, in path order, each
     /// path's own in the order it stored them.

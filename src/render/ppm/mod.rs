@@ -265,6 +265,7 @@ pub fn render_ppm(
                 .map(|m| Density::Radius(RadiusLookup::new(m, rg))),
             gather_rays: params.gather_rays,
             max_depth: params.max_depth,
+            control: *control,
         };
         let t_render = Instant::now();
         let film = render_film(&shader, &camera, params.spp, seed, control)?;

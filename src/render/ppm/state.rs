@@ -2,17 +2,29 @@
 //! that a render stopped after pass j and resumed gives the same bytes as one that never
 //! stopped (the passes' random numbers depend only on the seed and the pass index).
 //!
-//! File format: the line `photonbox-ppm-state 1`, a little-endian u64 header length, the
-//! header as JSON, then the sum image as little-endian f64 RGB triples, row-major.
+//! File format 2: the line `photonbox-ppm-state 2`, a little-endian u64 header length, the
+//! header as JSON, the sum image as little-endian f64 RGB triples, row-major, and last the
+//! SHA-256 of everything before it. A state with a flipped bit would otherwise resume
+//! without complaint and give other bytes than the render it claims to continue; with the
+//! digest, any change or truncation is [`StateError::Corrupt`] and the caller starts over.
+//! Format 1 (the same without the digest) cannot be verified, so it is refused as corrupt
+//! too: it costs one restart from pass 0.
 
 use std::io::{Read, Write};
 
 use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
 
 use crate::render::accuracy::ImageError;
 use crate::render::film::Image;
 
-const MAGIC: &[u8] = b"photonbox-ppm-state 1\n";
+const MAGIC: &[u8] = b"photonbox-ppm-state 2\n";
+
+/// Format 1's first line: no digest.
+const MAGIC_V1: &[u8] = b"photonbox-ppm-state 1\n";
+
+/// Bytes of the trailing SHA-256.
+const DIGEST: usize = 32;
 
 /// What one pass did.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
@@ -101,12 +113,21 @@ pub struct PpmState {
 
 #[derive(Debug, thiserror::Error)]
 pub enum StateError {
+    /// Nothing like a state (its first line is not, even nearly, a state's).
     #[error("not a photonbox PPM state file")]
     NotAState,
-    #[error("corrupt state file: {0}")]
-    Corrupt(String),
+    /// A state whose bytes are not the ones written (checksum, truncation, format 1): the
+    /// render cannot resume from it and must start from pass 0.
+    #[error("corrupt state file: {reason}")]
+    Corrupt { reason: String },
     #[error("{0}")]
     Io(#[from] std::io::Error),
+}
+
+fn corrupt(reason: impl Into<String>) -> StateError {
+    StateError::Corrupt {
+        reason: reason.into(),
+    }
 }
 
 impl PpmState {
@@ -179,16 +200,18 @@ impl PpmState {
             history: self.history.clone(),
         };
         let json = serde_json::to_vec(&header).map_err(std::io::Error::other)?;
-        w.write_all(MAGIC)?;
-        w.write_all(&(json.len() as u64).to_le_bytes())?;
-        w.write_all(&json)?;
-        let mut buf = Vec::with_capacity(self.sum.len() * 24);
+        let mut buf = Vec::with_capacity(MAGIC.len() + 8 + json.len() + self.sum.len() * 24);
+        buf.extend_from_slice(MAGIC);
+        buf.extend_from_slice(&(json.len() as u64).to_le_bytes());
+        buf.extend_from_slice(&json);
         for p in &self.sum {
             for c in p {
                 buf.extend_from_slice(&c.to_le_bytes());
             }
         }
+        let digest = Sha256::digest(&buf);
         w.write_all(&buf)?;
+        w.write_all(&digest)?;
         w.flush()
     }
 
@@ -199,31 +222,41 @@ impl PpmState {
         })
     }
 
+    /// Read a state, verifying its digest before anything else is trusted.
     pub fn load(mut r: impl Read) -> Result<PpmState, StateError> {
-        let mut magic = vec![0u8; MAGIC.len()];
-        r.read_exact(&mut magic)
-            .map_err(|_| StateError::NotAState)?;
-        if magic != MAGIC {
+        let mut file = Vec::new();
+        r.read_to_end(&mut file)?;
+        // A flipped bit in the first line is corruption, not another kind of file.
+        let alike = file.iter().zip(MAGIC).filter(|(a, b)| a == b).count();
+        if alike * 2 < MAGIC.len() {
             return Err(StateError::NotAState);
         }
-        let mut len = [0u8; 8];
-        r.read_exact(&mut len)?;
-        let len = u64::from_le_bytes(len);
-        if len > 1 << 30 {
-            return Err(StateError::Corrupt(format!("header of {len} bytes")));
+        if file.starts_with(MAGIC_V1) {
+            return Err(corrupt("format 1, which has no checksum to verify it by"));
         }
-        let mut json = vec![0u8; len as usize];
-        r.read_exact(&mut json)?;
-        let h: Header =
-            serde_json::from_slice(&json).map_err(|e| StateError::Corrupt(e.to_string()))?;
+        if file.len() < MAGIC.len() + 8 + DIGEST {
+            return Err(corrupt(format!("truncated ({} bytes)", file.len())));
+        }
+        let (body, digest) = file.split_at(file.len() - DIGEST);
+        if Sha256::digest(body)[..] != *digest {
+            return Err(corrupt("checksum mismatch (changed or truncated)"));
+        }
+        let Some(rest) = body.strip_prefix(MAGIC) else {
+            return Err(corrupt("unknown format"));
+        };
+        let (len, rest) = rest.split_at(8);
+        let len = u64::from_le_bytes(len.try_into().expect("8 bytes"));
+        if len > rest.len() as u64 {
+            return Err(corrupt(format!("header of {len} bytes")));
+        }
+        let (json, bytes) = rest.split_at(len as usize);
+        let h: Header = serde_json::from_slice(json).map_err(|e| corrupt(e.to_string()))?;
         let n = (h.width as usize)
             .checked_mul(h.height as usize)
             .filter(|n| *n <= 1 << 32)
-            .ok_or_else(|| StateError::Corrupt(format!("{}x{} pixels", h.width, h.height)))?;
-        let mut bytes = Vec::new();
-        r.read_to_end(&mut bytes)?;
+            .ok_or_else(|| corrupt(format!("{}x{} pixels", h.width, h.height)))?;
         if bytes.len() != n * 24 {
-            return Err(StateError::Corrupt(format!(
+            return Err(corrupt(format!(
                 "{} bytes of image for {}x{} pixels",
                 bytes.len(),
                 h.width,
@@ -296,7 +329,66 @@ mod tests {
         ));
         assert!(matches!(
             PpmState::load(&buf[..buf.len() - 1]),
-            Err(StateError::Corrupt(_))
+            Err(StateError::Corrupt { .. })
         ));
+    }
+}
+
+#[cfg(test)]
+mod checksum_tests {
+    use super::*;
+
+    fn saved() -> (PpmState, Vec<u8>) {
+        let mut s = PpmState::new("scene+params".into(), 4, 3);
+        s.passes = 5;
+        s.r2_global = 0.01;
+        s.r2_caustic = 0.0004;
+        for (i, p) in s.sum.iter_mut().enumerate() {
+            *p = [i as f64 * 0.25, 1.0 / (i + 1) as f64, 7.5];
+        }
+        let mut buf = Vec::new();
+        s.save(&mut buf).unwrap();
+        (s, buf)
+    }
+
+    fn is_corrupt(bytes: &[u8]) -> bool {
+        matches!(PpmState::load(bytes), Err(StateError::Corrupt { .. }))
+    }
+
+    /// Every single-bit flip, in the first line, the header length, the JSON header, the
+    /// pixel sum or the digest itself, is caught as corruption.
+    #[test]
+    fn any_flipped_bit_is_corrupt() {
+        let (s, buf) = saved();
+        assert_eq!(PpmState::load(&buf[..]).unwrap(), s);
+        for i in 0..buf.len() * 8 {
+            let mut bad = buf.clone();
+            bad[i / 8] ^= 1 << (i % 8);
+            assert!(is_corrupt(&bad), "bit {i} of {} flipped", buf.len() * 8);
+        }
+    }
+
+    #[test]
+    fn truncated_and_format_1_states_are_corrupt() {
+        let (_, buf) = saved();
+        for len in [
+            0,
+            1,
+            MAGIC.len(),
+            MAGIC.len() + 8,
+            buf.len() / 2,
+            buf.len() - 1,
+        ] {
+            let r = PpmState::load(&buf[..len]);
+            // Shorter than half the first line, a file is not recognisably a state.
+            let want_corrupt = len * 2 >= MAGIC.len();
+            assert_eq!(is_corrupt(&buf[..len]), want_corrupt, "{len} bytes: {r:?}");
+        }
+        // Format 1: the same bytes with the old first line and no digest.
+        let mut v1 = MAGIC_V1.to_vec();
+        v1.extend_from_slice(&buf[MAGIC.len()..buf.len() - DIGEST]);
+        assert!(is_corrupt(&v1));
+        let err = PpmState::load(&v1[..]).unwrap_err().to_string();
+        assert!(err.contains("format 1"), "{err}");
     }
 }

@@ -14,20 +14,27 @@ use std::collections::HashMap;
 use glam::DVec3;
 
 use super::{LightDesc, MeshData, SceneDesc, ShapeDesc};
+use crate::render::control::{Cancelled, Control};
 use crate::render::material::Material;
 
 /// Relative margin within which a point counts as on a sphere (neither inside nor out).
 const SPHERE_MARGIN: f64 = 1e-9;
 
 /// For each light, the index of a closed opaque object that holds it while the camera is
-/// outside, if any.
-pub fn shut_lights(desc: &SceneDesc) -> Vec<Option<usize>> {
+/// outside, if any. Each (light, mesh) pair reads the mesh's triangles, so the cancel flag
+/// is checked for each pair.
+pub fn shut_lights(desc: &SceneDesc, control: &Control) -> Result<Vec<Option<usize>>, Cancelled> {
     let camera = DVec3::from_array(desc.camera.position.0);
     let mut watertight: HashMap<usize, bool> = HashMap::new();
     desc.lights
         .iter()
         .map(|light| {
-            desc.objects.iter().enumerate().position(|(i, o)| {
+            let mut cancelled = Ok(());
+            let found = desc.objects.iter().enumerate().position(|(i, o)| {
+                if let Err(c) = control.check() {
+                    cancelled = Err(c);
+                    return true;
+                }
                 if matches!(
                     desc.materials[o.material as usize],
                     Material::Dielectric { .. }
@@ -50,7 +57,8 @@ pub fn shut_lights(desc: &SceneDesc) -> Vec<Option<usize>> {
                             && *watertight.entry(i).or_insert_with(|| is_watertight(m))
                     }
                 }
-            })
+            });
+            cancelled.map(|()| found)
         })
         .collect()
 }

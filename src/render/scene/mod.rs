@@ -5,6 +5,7 @@
 //! scene's bounds. With no absolute epsilon anywhere (see `geometry`), this makes an image
 //! independent of where the scene sits in space and of its scale.
 
+mod build;
 mod enclosure;
 mod format;
 mod load;
@@ -17,7 +18,8 @@ use serde_json::Value;
 pub use format::CameraDef;
 
 use crate::render::camera::Camera;
-use crate::render::geometry::{Accel, Hit, PrimHit, PrimId, Primitive, Ray, Shape, Surface};
+use crate::render::control::{Cancelled, Control};
+use crate::render::geometry::{Accel, Hit, PrimHit, PrimId, Ray, Surface};
 use crate::render::light::Light;
 use crate::render::material::Material;
 use crate::render::math::Rgb;
@@ -219,148 +221,11 @@ impl Scene {
         Ok((Scene::build(&desc), text))
     }
 
+    /// [`Scene::build_with`] with no progress or cancel hooks.
     pub fn build(desc: &SceneDesc) -> Scene {
-        let (lo, hi) = desc.bounds(true).unwrap_or((DVec3::ZERO, DVec3::ZERO));
-        // The objects' bounds (everything's, if there are none) give the scene's length
-        // scale and the engine frame's centre. Not the lights': a distant light (a sun at
-        // 1e9) must not move the origin away from the geometry, where f32 would leave the
-        // scene units apart (found by tests/parser_fuzz.rs).
-        let (geo_lo, geo_hi) = desc.bounds(false).unwrap_or((lo, hi));
-        let geometry_extent = (geo_hi - geo_lo).length() as f32;
-        let origin = (geo_lo + geo_hi) * 0.5;
-        let local = |p: DVec3| (p - origin).as_vec3a();
-        let vec = |v: DVec3| v.as_vec3a();
-
-        let mut prims = Vec::new();
-        let mut triangle_count = 0;
-        for o in &desc.objects {
-            let surface = Surface::Material(o.material);
-            match &o.shape {
-                ShapeDesc::Sphere { center, radius } => prims.push(Primitive {
-                    shape: Shape::Sphere {
-                        center: local(*center),
-                        radius: *radius as f32,
-                    },
-                    surface,
-                }),
-                ShapeDesc::Quad {
-                    corner,
-                    edge_u,
-                    edge_v,
-                } => prims.push(Primitive {
-                    shape: Shape::quad(local(*corner), vec(*edge_u), vec(*edge_v)),
-                    surface,
-                }),
-                ShapeDesc::Mesh(m) => {
-                    let pos: Vec<Vec3A> = m.positions.iter().map(|p| local(*p)).collect();
-                    triangle_count += m.triangles.len();
-                    prims.extend(m.triangles.iter().map(|t| Primitive {
-                        shape: Shape::Triangle {
-                            p0: pos[t[0] as usize],
-                            p1: pos[t[1] as usize],
-                            p2: pos[t[2] as usize],
-                        },
-                        surface,
-                    }));
-                }
-            }
-        }
-        for (i, l) in desc.lights.iter().enumerate() {
-            let surface = Surface::Light(i as u32);
-            match l {
-                LightDesc::Point { .. } => {}
-                LightDesc::Sphere { center, radius, .. } => prims.push(Primitive {
-                    shape: Shape::Sphere {
-                        center: local(*center),
-                        radius: *radius as f32,
-                    },
-                    surface,
-                }),
-                LightDesc::Quad {
-                    corner,
-                    edge_u,
-                    edge_v,
-                    ..
-                } => prims.push(Primitive {
-                    shape: Shape::quad(local(*corner), vec(*edge_u), vec(*edge_v)),
-                    surface,
-                }),
-            }
-        }
-        let accel = Accel::build(prims);
-        let mut light_prims = vec![crate::render::geometry::NO_PRIM; desc.lights.len()];
-        for (id, p) in accel.prims().iter().enumerate() {
-            if let Surface::Light(l) = p.surface {
-                light_prims[l as usize] = id as PrimId;
-            }
-        }
-        let prim_of_light = |i: usize| light_prims[i];
-        let lights = desc
-            .lights
-            .iter()
-            .enumerate()
-            .map(|(i, l)| match l {
-                LightDesc::Point { position, power } => Light::Point {
-                    position: local(*position),
-                    power: *power,
-                },
-                LightDesc::Sphere {
-                    center,
-                    radius,
-                    radiance,
-                } => Light::Sphere {
-                    center: local(*center),
-                    radius: *radius as f32,
-                    radiance: *radiance,
-                    prim: prim_of_light(i),
-                },
-                LightDesc::Quad {
-                    corner,
-                    edge_u,
-                    edge_v,
-                    radiance,
-                } => {
-                    let c = vec(*edge_u).cross(vec(*edge_v));
-                    Light::Quad {
-                        corner: local(*corner),
-                        edge_u: vec(*edge_u),
-                        edge_v: vec(*edge_v),
-                        n: c.normalize(),
-                        area: c.length(),
-                        radiance: *radiance,
-                        prim: prim_of_light(i),
-                    }
-                }
-            })
-            .collect();
-        let c = &desc.camera;
-        // The view direction in f64: a camera 1e-3 from what it looks at, 1e5 from the
-        // origin, still has one. The point looked at is placed at the position's own scale.
-        let position = DVec3::from_array(c.position.0);
-        let forward = (DVec3::from_array(c.look_at.0) - position).normalize();
-        let reach = (position - origin).length() + geometry_extent as f64 + 1.0;
-        let camera = Camera::new(
-            local(position),
-            local(position + forward * reach),
-            DVec3::from_array(c.up.0).as_vec3a(),
-            c.fov.0 as f32,
-            c.width,
-            c.height,
-        );
-        Scene {
-            name: desc.name.clone(),
-            camera,
-            materials: desc.materials.clone(),
-            material_names: desc.material_names.clone(),
-            lights,
-            accel,
-            frame_origin: origin,
-            bounds_min: local(lo),
-            bounds_max: local(hi),
-            geometry_extent,
-            triangle_count,
-            caustic_targets: crate::render::photon::CausticTargets::from_desc(desc, origin),
-            shut_in: enclosure::shut_lights(desc),
+        match Scene::build_with(desc, &Control::none()) {
+            Ok(scene) => scene,
+            Err(Cancelled) => unreachable!("no cancel flag"),
         }
     }
 
