@@ -163,7 +163,6 @@ fn execute(
         scene_name.filter(|_| scene_json.is_none()),
     )
     .map_err(|e| bad(e.message))?;
-    let scene = Scene::build(&resolved.desc);
     // The reference job's image; it may have been deleted since this job was submitted.
     let reference = match params.reference_job {
         Some(rid) => {
@@ -177,8 +176,8 @@ fn execute(
         None => None,
     };
     let p = &params.render;
-    let width = p.width.unwrap_or(scene.camera.width) as u64;
-    let height = p.height.unwrap_or(scene.camera.height) as u64;
+    let width = p.width.unwrap_or(resolved.desc.camera.width) as u64;
+    let height = p.height.unwrap_or(resolved.desc.camera.height) as u64;
 
     // One fraction over the phases, published monotone and at most every half percent.
     let weights = phase_weights(p, width * height);
@@ -236,9 +235,12 @@ fn execute(
         .start_handler(|_| lower_priority())
         .build()
         .map_err(|e| bad(format!("starting render threads: {e}")))?;
+    // Building the scene (its BVH) is a phase like the others: progress, cancel.
+    let scene = pool.install(|| Scene::build_with(&resolved.desc, &control))?;
+    let mut resume_note = None;
     let (out, outcome, key) = if p.integrator == IntegratorKind::Ppm {
         let scene_json = &resolved.text;
-        let out = pool.install(|| {
+        let (out, note) = pool.install(|| {
             render_progressive(
                 app,
                 id,
@@ -250,6 +252,7 @@ fn execute(
                 &live,
             )
         })?;
+        resume_note = Some(note);
         (out, CacheOutcome::NotNeeded, None)
     } else {
         pool.install(|| -> Result<_, Failure> {
@@ -298,12 +301,18 @@ fn execute(
         None => json!({ "photon_maps": outcome.as_str() }),
     };
     stats["params"]["exposure"] = json!(params.exposure);
+    if let Some(note) = resume_note {
+        stats["ppm_state"] = note;
+    }
     Ok(stats)
 }
 
 /// A `ppm` job, pass by pass: after each pass the preview images and the running state
 /// are written (atomically) and a preview is published; a job interrupted by a restart
-/// resumes from its last saved pass, with the same bytes as an uninterrupted render.
+/// resumes from its last saved pass, with the same bytes as an uninterrupted render. A
+/// saved state that is corrupt (its checksum) or of other parameters is discarded, said in
+/// the log, and the render starts from pass 0. Returns the output and what became of the
+/// saved state (STATS.json's `ppm_state`).
 #[allow(clippy::too_many_arguments)]
 fn render_progressive(
     app: &Arc<App>,
@@ -314,15 +323,36 @@ fn render_progressive(
     reference: Option<&Image>,
     control: &Control,
     live: &watch::Sender<Snapshot>,
-) -> Result<RenderOutput, Failure> {
+) -> Result<(RenderOutput, Value), Failure> {
     let p = &params.render;
     let state_path = result_path(&app.config.data, id, "ppmstate");
     let fingerprint = ppm::fingerprint(scene_json.as_bytes(), p);
     // A state that does not load or does not match is not ours to trust: start over.
-    let resume = std::fs::read(&state_path)
-        .ok()
-        .and_then(|b| PpmState::load(&b[..]).ok())
-        .filter(|s| s.fingerprint == fingerprint);
+    let (resume, note) = match std::fs::read(&state_path) {
+        Err(_) => (None, json!({ "resumed_from_pass": 0 })),
+        Ok(bytes) => match PpmState::load(&bytes[..]) {
+            Ok(s) if s.fingerprint == fingerprint => {
+                let note = json!({ "resumed_from_pass": s.passes });
+                (Some(s), note)
+            }
+            Ok(_) => {
+                let why = "the saved state is of other parameters";
+                tracing::warn!(job = id, "{why}: starting again from pass 0");
+                (None, json!({ "resumed_from_pass": 0, "discarded": why }))
+            }
+            Err(e) => {
+                tracing::error!(
+                    job = id,
+                    "{}: {e}: starting again from pass 0",
+                    state_path.display()
+                );
+                (
+                    None,
+                    json!({ "resumed_from_pass": 0, "discarded": e.to_string() }),
+                )
+            }
+        },
+    };
     let opts = PpmOptions {
         resume,
         reference,
@@ -355,7 +385,7 @@ fn render_progressive(
         {
             Err(Failure::Yielded)
         }
-        Ok(out) => Ok(out.output),
+        Ok(out) => Ok((out.output, note)),
         Err(PpmError::Cancelled(_)) => Err(Failure::Cancelled),
         Err(PpmError::Input(e)) => Err(Failure::Error(e)),
     }

@@ -442,3 +442,42 @@ fn cancel_stops_the_most_expensive_camera_pass_at_once() {
     assert_eq!(v["status"], "cancelled", "{v} after {took:?}");
     eprintln!("cancelled inside the camera pass; DELETE answered after {took:?}");
 }
+
+#[test]
+fn a_corrupt_ppm_state_restarts_the_job_from_pass_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &["--max-running", "1"]);
+    let t = s.admin.clone();
+    let job = json!({"scene_name": "cornell_mirror_glass", "params": {"integrator": "ppm",
+        "iterations": 12, "width": 48, "height": 32, "photons": 30000,
+        "caustic_photons": 30000}});
+    let id = submit(&s, &t, job.clone());
+    follow(&s, &t, id, |e| {
+        e.data["previews"].as_u64().unwrap_or(0) >= 3
+    });
+    s.kill();
+    // One flipped bit in the middle of the saved sum.
+    let state = dir.path().join("results").join(format!("{id}.ppmstate"));
+    let mut bytes_ = std::fs::read(&state).unwrap();
+    let mid = bytes_.len() / 2;
+    bytes_[mid] ^= 0x10;
+    std::fs::write(&state, &bytes_).unwrap();
+
+    let s = Server::start(dir.path(), &["--max-running", "1"]);
+    expect_done(&s, &t, id);
+    let (_, v) = get(&s, &t, &format!("/api/jobs/{id}"));
+    let note = &v["stats"]["ppm_state"];
+    assert_eq!(note["resumed_from_pass"], 0, "{note}");
+    assert!(
+        note["discarded"].as_str().unwrap_or("").contains("corrupt"),
+        "the job says why it started over: {note}"
+    );
+    // From pass 0, the same bytes as a job never interrupted.
+    let again = run_to_done(&s, &t, job);
+    let (_, a) = bytes(&s, &t, &format!("/api/jobs/{id}/image.exr"));
+    let (_, b) = bytes(&s, &t, &format!("/api/jobs/{again}/image.exr"));
+    assert!(
+        a == b,
+        "the restarted job's EXR differs from an uninterrupted one"
+    );
+}

@@ -528,6 +528,8 @@ fn ppm_jobs_stream_previews_and_resume_after_a_crash() {
     let (_, resumed) = get(&s, &t, &format!("/api/jobs/{id}"));
     let history = resumed["stats"]["ppm"]["history"].as_array().unwrap();
     assert_eq!(history.len(), 40, "all 40 passes are in the stats");
+    let from = resumed["stats"]["ppm_state"]["resumed_from_pass"].as_u64();
+    assert!(from.is_some_and(|n| n >= 3), "{}", resumed["stats"]);
     assert_eq!(resumed["stats"]["ppm"]["passes"], 40);
     assert_eq!(resumed["stats"]["params"]["integrator"], "ppm");
     assert!(
