@@ -100,6 +100,10 @@ struct ServeArgs {
     /// connection stays open.
     #[arg(long, default_value_t = 10.0)]
     header_timeout: f64,
+    /// Seconds a response write may make no progress (a client that stopped reading)
+    /// before the connection is closed.
+    #[arg(long, default_value_t = 30.0)]
+    write_timeout: f64,
     /// Seconds a client has to send a request body.
     #[arg(long, default_value_t = 60.0)]
     body_timeout: f64,
@@ -202,6 +206,7 @@ fn run_serve(a: ServeArgs) -> anyhow::Result<()> {
         conn: photonbox::server::ConnLimits {
             max_connections: a.max_connections,
             header_timeout: seconds(a.header_timeout, "--header-timeout")?,
+            write_timeout: seconds(a.write_timeout, "--write-timeout")?,
             drain: std::time::Duration::from_secs(10),
         },
         body_timeout: seconds(a.body_timeout, "--body-timeout")?,

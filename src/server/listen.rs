@@ -13,11 +13,18 @@
 //!   the first one or the next on a kept-alive connection, so it is the idle timeout too; a
 //!   slow sender is closed when its head is not complete in time. Bodies have their own
 //!   timeout where they are read (`api::submit_job`).
+//! - **Write timeout**: a response write that makes no progress for `write_timeout` (a
+//!   client that stopped reading: an SSE stream or a download it never drains, pipelined
+//!   requests whose answers it ignores) fails and closes the connection, so no client holds
+//!   a permit by not reading ([`StallGuard`]). Request heads are buffered up to 64 KiB.
 //! - **Shutdown**: stop accepting, let requests in flight finish (hyper's graceful shutdown;
 //!   SSE streams end on the app's own shutdown signal), for at most `drain` time.
 
 use std::future::Future;
+use std::io;
+use std::pin::Pin;
 use std::sync::Arc;
+use std::task::{Context, Poll};
 use std::time::{Duration, Instant};
 
 use axum::Router;
@@ -25,7 +32,8 @@ use hyper::server::conn::http1;
 use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::server::graceful::GracefulShutdown;
 use hyper_util::service::TowerToHyperService;
-use tokio::net::TcpListener;
+use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
+use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::Semaphore;
 
 /// How the accept loop treats connections (flags of `photonbox serve`).
@@ -36,6 +44,8 @@ pub struct ConnLimits {
     /// Time a client has to send a complete request head, and the longest a kept-alive
     /// connection may sit idle.
     pub header_timeout: Duration,
+    /// Longest a response write may make no progress before the connection is closed.
+    pub write_timeout: Duration,
     /// Time to drain requests in flight at shutdown.
     pub drain: Duration,
 }
@@ -83,7 +93,8 @@ pub async fn serve(
     let graceful = GracefulShutdown::new();
     let mut http = http1::Builder::new();
     http.timer(TokioTimer::new())
-        .header_read_timeout(limits.header_timeout);
+        .header_read_timeout(limits.header_timeout)
+        .max_buf_size(64 << 10);
     let mut last_warning: Option<Instant> = None;
     let mut warn = |msg: String| {
         if last_warning.is_none_or(|t| t.elapsed() > Duration::from_secs(60)) {
@@ -124,7 +135,7 @@ pub async fn serve(
         };
         let _ = stream.set_nodelay(true);
         let conn = http.serve_connection(
-            TokioIo::new(stream),
+            TokioIo::new(StallGuard::new(stream, limits.write_timeout)),
             TowerToHyperService::new(router.clone()),
         );
         let conn = graceful.watch(conn);
@@ -139,5 +150,98 @@ pub async fn serve(
         .is_err()
     {
         tracing::warn!("requests still in flight after {:?}: closing", limits.drain);
+    }
+}
+
+/// A connection whose writes fail once they have made no progress for `timeout`: the
+/// peer's receive window stayed full, so it is not reading.
+struct StallGuard {
+    stream: TcpStream,
+    timeout: Duration,
+    /// Armed when a write first finds the socket full; cleared by any progress.
+    stalled: Option<Pin<Box<tokio::time::Sleep>>>,
+}
+
+impl StallGuard {
+    fn new(stream: TcpStream, timeout: Duration) -> StallGuard {
+        StallGuard {
+            stream,
+            timeout,
+            stalled: None,
+        }
+    }
+
+    /// After a write returned `Pending`: an error once the stall has lasted `timeout`.
+    fn poll_stall(&mut self, cx: &mut Context<'_>) -> Poll<io::Error> {
+        let timeout = self.timeout;
+        let sleep = self
+            .stalled
+            .get_or_insert_with(|| Box::pin(tokio::time::sleep(timeout)));
+        match sleep.as_mut().poll(cx) {
+            Poll::Ready(()) => Poll::Ready(io::Error::new(
+                io::ErrorKind::TimedOut,
+                "the client stopped reading",
+            )),
+            Poll::Pending => Poll::Pending,
+        }
+    }
+
+    fn progress<T>(&mut self, r: Poll<io::Result<T>>, cx: &mut Context<'_>) -> Poll<io::Result<T>> {
+        match r {
+            Poll::Pending => match self.poll_stall(cx) {
+                Poll::Ready(e) => Poll::Ready(Err(e)),
+                Poll::Pending => Poll::Pending,
+            },
+            // Bytes written (or an error): the stall, if any, is over.
+            ready => {
+                self.stalled = None;
+                ready
+            }
+        }
+    }
+}
+
+impl AsyncRead for StallGuard {
+    fn poll_read(
+        self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &mut ReadBuf<'_>,
+    ) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.get_mut().stream).poll_read(cx, buf)
+    }
+}
+
+impl AsyncWrite for StallGuard {
+    fn poll_write(
+        self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &[u8],
+    ) -> Poll<io::Result<usize>> {
+        let this = self.get_mut();
+        let r = Pin::new(&mut this.stream).poll_write(cx, buf);
+        this.progress(r, cx)
+    }
+
+    fn poll_write_vectored(
+        self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        bufs: &[io::IoSlice<'_>],
+    ) -> Poll<io::Result<usize>> {
+        let this = self.get_mut();
+        let r = Pin::new(&mut this.stream).poll_write_vectored(cx, bufs);
+        this.progress(r, cx)
+    }
+
+    fn is_write_vectored(&self) -> bool {
+        self.stream.is_write_vectored()
+    }
+
+    fn poll_flush(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        // A TCP flush is immediate: it says nothing of progress, and must not reset a stall.
+        Pin::new(&mut self.get_mut().stream).poll_flush(cx)
+    }
+
+    fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
+        Pin::new(&mut self.get_mut().stream).poll_shutdown(cx)
     }
 }

@@ -481,3 +481,66 @@ fn a_corrupt_ppm_state_restarts_the_job_from_pass_0() {
         "the restarted job's EXR differs from an uninterrupted one"
     );
 }
+
+#[test]
+fn clients_that_stop_reading_do_not_keep_their_connections() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(
+        dir.path(),
+        &[
+            "--max-connections",
+            "4",
+            "--write-timeout",
+            "1",
+            "--header-timeout",
+            "600",
+        ],
+    );
+    // A 30 MB download, more than the socket buffers of both ends hold (the client's receive
+    // buffer is pinned small: Linux would otherwise grow it to tens of MB).
+    let id = run_to_done(
+        &s,
+        &s.admin,
+        json!({"scene_name": "cornell", "params": {"integrator": "raytrace",
+               "width": 2048, "height": 2048, "spp": 1}}),
+    );
+    // Every permitted connection asks for it and reads none of it.
+    let request = format!(
+        "GET /api/jobs/{id}/image.exr HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {}\r\n\r\n",
+        s.admin
+    );
+    let stalled: Vec<TcpStream> = (0..4)
+        .map(|_| {
+            let mut c = TcpStream::connect(s.addr()).unwrap();
+            small_receive_buffer(&c);
+            c.write_all(request.as_bytes()).unwrap();
+            c
+        })
+        .collect();
+    // Someone else is still served: the stalled writes time out and free the cap (without
+    // the write timeout, the four would hold it for as long as they like).
+    let quick = reqwest::blocking::Client::builder()
+        .timeout(Duration::from_secs(60))
+        .build()
+        .unwrap();
+    let r = quick.get(s.url("/healthz")).send().unwrap();
+    assert_eq!(r.status().as_u16(), 200);
+    drop(stalled);
+}
+
+/// Pin a socket's receive buffer at 64 KiB (no autotuning).
+fn small_receive_buffer(c: &TcpStream) {
+    use std::os::fd::AsRawFd;
+    let size: libc::c_int = 64 << 10;
+    // SAFETY: setsockopt on an open socket with a valid int option.
+    let r = unsafe {
+        libc::setsockopt(
+            c.as_raw_fd(),
+            libc::SOL_SOCKET,
+            libc::SO_RCVBUF,
+            (&size as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        )
+    };
+    assert_eq!(r, 0, "setsockopt SO_RCVBUF");
+}
