@@ -153,6 +153,15 @@ fn bad(msg: impl Into<String>) -> anyhow::Error {
     BadInput(msg.into()).into()
 }
 
+/// MiB from a flag, in bytes.
+fn mib(n: u64, flag: &str) -> anyhow::Result<u64> {
+    n.checked_mul(1 << 20).ok_or_else(|| {
+        bad(format!(
+            "{flag}: {n} MiB is more than this machine can count"
+        ))
+    })
+}
+
 /// A positive number of seconds from a flag.
 fn seconds(s: f64, flag: &str) -> anyhow::Result<std::time::Duration> {
     if !(s.is_finite() && s > 0.0 && s <= 86400.0) {
@@ -190,7 +199,7 @@ fn run_serve(a: ServeArgs) -> anyhow::Result<()> {
         scenes,
         threads,
         max_running: a.max_running,
-        cache_bytes: a.cache_mb << 20,
+        cache_bytes: mib(a.cache_mb, "--cache-mb")?,
         limits: photonbox::server::Limits {
             body_bytes: a.max_body,
             max_pixels: a.max_pixels,
@@ -199,9 +208,9 @@ fn run_serve(a: ServeArgs) -> anyhow::Result<()> {
             max_iterations: a.max_iterations,
             max_triangles: a.max_triangles,
             max_queued_per_user: a.max_queued,
-            memory_bytes: a.memory_mb << 20,
+            memory_bytes: mib(a.memory_mb, "--memory-mb")?,
             max_work: a.max_work,
-            storage_bytes_per_user: a.storage_mb << 20,
+            storage_bytes_per_user: mib(a.storage_mb, "--storage-mb")?,
         },
         conn: photonbox::server::ConnLimits {
             max_connections: a.max_connections,

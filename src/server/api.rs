@@ -302,6 +302,8 @@ async fn submit_job(
         );
         check_reference(&app, &user, reference, size)?;
     }
+    // From the checks to the job table, one submission at a time (see `App::submit`).
+    let _submitting = app.submit.lock().await;
     if app.jobs.queued_of(user.id) >= limits.max_queued_per_user {
         return Err(ApiError::new(
             StatusCode::TOO_MANY_REQUESTS,
@@ -326,6 +328,7 @@ async fn submit_job(
         scene_name: scene.name.clone(),
         scene_bytes,
         result_bytes: needs.result_bytes,
+        result_estimate: needs.result_bytes,
         memory_bytes: needs.memory_bytes,
         params_json: serde_json::to_string(&params_json)
             .map_err(|e| ApiError::internal(e.to_string()))?,
@@ -501,14 +504,29 @@ async fn image(
             format!("no image yet: the job is {}", row.status.as_str()),
         ));
     }
+    let mut req = req;
+    if !row.status.is_final() {
+        // A preview is replaced by the next pass: a range of it could join two files.
+        req.headers_mut().remove(header::RANGE);
+        req.headers_mut().remove(header::IF_RANGE);
+    }
     let mut served = ServeFile::new(path)
         .oneshot(req)
         .await
         .map_err(|e| ApiError::internal(format!("serving the image: {e}")))?;
     if served.status().is_success() {
-        served
-            .headers_mut()
-            .insert(header::CONTENT_TYPE, header::HeaderValue::from_static(mime));
+        let h = served.headers_mut();
+        h.insert(header::CONTENT_TYPE, header::HeaderValue::from_static(mime));
+        if !row.status.is_final() {
+            h.insert(
+                header::ACCEPT_RANGES,
+                header::HeaderValue::from_static("none"),
+            );
+            h.insert(
+                header::CACHE_CONTROL,
+                header::HeaderValue::from_static("no-store"),
+            );
+        }
     }
     Ok(served.map(Body::new))
 }

@@ -48,6 +48,11 @@ pub fn bearer(headers: &HeaderMap) -> Result<&str, ApiError> {
         .ok_or_else(ApiError::unauthorized)
 }
 
+/// Whether `token` looks like one of ours (64 hex digits).
+pub fn well_formed(token: &str) -> bool {
+    token.len() == 64 && token.bytes().all(|b| b.is_ascii_hexdigit())
+}
+
 /// A user name: 1-64 letters, digits, '-', '_' or '.'.
 pub fn valid_name(name: &str) -> bool {
     (1..=64).contains(&name.len())

@@ -423,13 +423,14 @@ pub struct ResolvedScene {
     /// The scene's JSON as compact text, keys sorted (serde_json's maps are): canonical. An
     /// uploaded scene is stored as it; a progressive job's state is fingerprinted by it.
     pub text: String,
-    /// The same without `camera`, `name` and `description`: what the photon-map cache key
-    /// hashes ([`cache_key`]).
+    /// The SHA-256 of the same text without `camera`, `name` and `description`: what the
+    /// photon-map cache key is made from ([`cache_key`]).
     pub without_camera: String,
     pub name: Option<String>,
 }
 
-/// `value`'s canonical text, and that text without the keys that do not shape photon maps.
+/// `value`'s canonical text, and a hash of that text without the keys that do not shape
+/// photon maps.
 fn canonical_texts(value: &mut Value) -> (String, String) {
     let text = value.to_string();
     let mut taken = Vec::new();
@@ -440,7 +441,7 @@ fn canonical_texts(value: &mut Value) -> (String, String) {
             }
         }
     }
-    let without_camera = value.to_string();
+    let without_camera = super::auth::sha256_hex(value.to_string().as_bytes());
     if let Some(obj) = value.as_object_mut() {
         for (key, v) in taken {
             obj.insert(key.to_string(), v);
@@ -533,6 +534,10 @@ pub fn set_aside_orphans(data: &Path, ids: &std::collections::HashSet<i64>) {
         return;
     };
     let mut moved = 0;
+    // One folder a start, so that an earlier start's orphans are never overwritten.
+    let orphaned = dir
+        .join("orphaned")
+        .join(format!("{:.0}", super::store::now() * 1e3));
     for e in entries.flatten() {
         let path = e.path();
         if !path.is_file() {
@@ -545,7 +550,6 @@ pub fn set_aside_orphans(data: &Path, ids: &std::collections::HashSet<i64>) {
         if id.is_none_or(|id| ids.contains(&id)) {
             continue; // not a result file (temporaries), or a known job's
         }
-        let orphaned = dir.join("orphaned");
         let to = orphaned.join(e.file_name());
         match std::fs::create_dir_all(&orphaned).and_then(|_| std::fs::rename(&path, &to)) {
             Ok(()) => moved += 1,
@@ -556,7 +560,7 @@ pub fn set_aside_orphans(data: &Path, ids: &std::collections::HashSet<i64>) {
         tracing::error!(
             "the store and the data folder disagree: {moved} result files belong to no job in \
              the store (it lost rows?); moved to {}",
-            dir.join("orphaned").display()
+            orphaned.display()
         );
     }
 }

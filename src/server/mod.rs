@@ -69,6 +69,12 @@ pub struct App {
     user_names: Mutex<HashMap<i64, String>>,
     /// Becomes true when the server shuts down: SSE streams end.
     shutdown: watch::Sender<bool>,
+    /// An exclusive lock on the data folder (see [`lock_data_dir`]), held while we run.
+    _lock: std::fs::File,
+    /// Held from a submission's quota and queue checks to its entry in the job table, so
+    /// that parallel submissions of one user cannot all pass the same check. A tokio mutex:
+    /// it is held across the store's insert (an await).
+    submit: tokio::sync::Mutex<()>,
 }
 
 pub type AppRef = Arc<App>;
@@ -116,6 +122,15 @@ fn ensure_admin(store: &Store, data: &Path) -> anyhow::Result<Option<String>> {
     let Some(token) = file else {
         return Ok(None);
     };
+    if !auth::well_formed(&token) {
+        tracing::error!(
+            "{} does not hold a token (64 hex digits): a new admin token replaces it",
+            path.display()
+        );
+        let (_, token) = store.add_user(&format!("admin-{}", &auth::new_token()[..8]), true)?;
+        write_admin_token(data, &token)?;
+        return Ok(Some(token));
+    }
     if store
         .user_by_token_hash(&auth::token_hash(&token))?
         .is_some()
@@ -128,12 +143,36 @@ fn ensure_admin(store: &Store, data: &Path) -> anyhow::Result<Option<String>> {
         path.display()
     );
     if store.restore_admin(&auth::token_hash(&token)).is_err() {
-        // Not valid as a token, or no way to restore it: a new admin token replaces it.
+        // An "admin" with another token exists: the file is stale; a new admin's token
+        // replaces it.
         let (_, token) = store.add_user(&format!("admin-{}", &auth::new_token()[..8]), true)?;
         write_admin_token(data, &token)?;
         return Ok(Some(token));
     }
     Ok(Some(token))
+}
+
+/// Take an exclusive lock on `data/lock` for as long as the returned file is open: a second
+/// `serve` on the same folder would otherwise re-queue the first one's running jobs and set
+/// its new result files aside as orphans.
+fn lock_data_dir(data: &Path) -> anyhow::Result<std::fs::File> {
+    use std::os::fd::AsRawFd;
+    let path = data.join("lock");
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&path)
+        .with_context(|| format!("opening {}", path.display()))?;
+    // SAFETY: flock on a descriptor we own.
+    let r = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+    anyhow::ensure!(
+        r == 0,
+        "{} is in use by another `photonbox serve` (or it cannot be locked: {})",
+        data.display(),
+        std::io::Error::last_os_error()
+    );
+    Ok(file)
 }
 
 /// Write the admin token beside the store, readable by its owner only (atomically: a crash
@@ -153,9 +192,12 @@ fn write_admin_token(data: &Path, token: &str) -> anyhow::Result<()> {
 impl App {
     fn open(config: Config) -> anyhow::Result<(Arc<App>, Option<String>)> {
         ensure_dirs(&config.data)?;
+        let lock = lock_data_dir(&config.data)?;
         let store = Store::open(&config.data).context("opening the store")?;
         let admin_token = ensure_admin(&store, &config.data)?;
         let app = Arc::new(App {
+            _lock: lock,
+            submit: tokio::sync::Mutex::new(()),
             scheduler: Scheduler::new(config.max_running, config.limits.memory_bytes),
             cache: MapCache::new(config.cache_bytes),
             catalog: SceneCatalog {
@@ -183,6 +225,9 @@ impl App {
         jobs::set_aside_orphans(&self.config.data, &ids);
         for mut row in rows {
             row.result_bytes = jobs::result_bytes(&self.config.data, row.id);
+            if !row.status.is_final() {
+                row.result_bytes = row.result_bytes.max(row.result_estimate);
+            }
             if row.status == Status::Done && row.result_bytes == 0 {
                 tracing::error!(
                     "job {} is done but its result files are gone from {}",

@@ -53,6 +53,11 @@ pub fn run_job(app: &Arc<App>, id: i64, cancel: &Arc<AtomicBool>) {
             .store
             .scene_json(id)
             .map_err(|e| Failure::Error(format!("reading the job's scene: {e}")))?;
+        if row.scene_bytes > 0 && scene_json.is_none() {
+            return Err(Failure::Error(
+                "the job's uploaded scene is gone from the store".into(),
+            ));
+        }
         execute(
             app,
             id,

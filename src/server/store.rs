@@ -70,8 +70,11 @@ pub struct JobRow {
     /// and every job listing would otherwise carry it.
     pub scene_bytes: u64,
     /// Bytes of the job's result files on disk (PNG, EXR, a progressive job's state), as
-    /// last measured; with `scene_bytes`, what the job takes of its owner's storage quota.
+    /// last measured; with `scene_bytes`, what the job takes of its owner's storage quota
+    /// (at least `result_estimate` until the job is final).
     pub result_bytes: u64,
+    /// The estimated size of the result files (`jobs::JobNeeds::result_bytes`), stored.
+    pub result_estimate: u64,
     /// The job's parameters as submitted (validated).
     pub params_json: String,
     /// Estimated peak memory of the render (`jobs::JobNeeds`), kept so that a restart can
@@ -119,6 +122,21 @@ CREATE TABLE IF NOT EXISTS jobs (
 );
 ";
 
+/// Columns added since the first schema, added to stores made before them.
+fn migrate(conn: &Connection) -> rusqlite::Result<()> {
+    let has = |col: &str| -> rusqlite::Result<bool> {
+        let mut st = conn.prepare("SELECT 1 FROM pragma_table_info('jobs') WHERE name = ?1")?;
+        st.exists([col])
+    };
+    if !has("result_estimate")? {
+        // The estimated size of the job's result files (its storage until they exist).
+        conn.execute_batch(
+            "ALTER TABLE jobs ADD COLUMN result_estimate INTEGER NOT NULL DEFAULT 0",
+        )?;
+    }
+    Ok(())
+}
+
 impl Store {
     pub fn open(dir: &Path) -> rusqlite::Result<Store> {
         let conn = Connection::open(dir.join("photonbox.sqlite3"))?;
@@ -127,6 +145,7 @@ impl Store {
         conn.pragma_update(None, "foreign_keys", "ON")?;
         conn.busy_timeout(std::time::Duration::from_secs(5))?;
         conn.execute_batch(SCHEMA)?;
+        migrate(&conn)?;
         Ok(Store {
             conn: Mutex::new(conn),
         })
@@ -203,8 +222,8 @@ impl Store {
             let id = rand::random_range(1..(1i64 << 53));
             let inserted = conn.execute(
                 "INSERT INTO jobs (id, user_id, public, status, scene_name, scene_json,
-                                   params_json, memory_bytes, created)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
+                                   params_json, memory_bytes, created, result_estimate)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
                 params![
                     id,
                     row.user_id,
@@ -214,7 +233,8 @@ impl Store {
                     scene_json,
                     row.params_json,
                     row.memory_bytes as i64,
-                    row.created
+                    row.created,
+                    row.result_estimate as i64
                 ],
             );
             match inserted {
@@ -264,12 +284,14 @@ impl Store {
         Ok(())
     }
 
-    /// Every job, oldest first.
+    /// Every job, oldest first (by creation: ids are random).
     pub fn all_jobs(&self) -> rusqlite::Result<Vec<JobRow>> {
         let conn = self.conn();
         let mut st = conn.prepare(
-            "SELECT id, user_id, public, status, scene_name, length(scene_json), params_json, created,
-                    started, finished, error, stats_json, memory_bytes FROM jobs ORDER BY id",
+            "SELECT id, user_id, public, status, scene_name, length(CAST(scene_json AS BLOB)),
+                    params_json, created, started, finished, error, stats_json, memory_bytes,
+                    result_estimate
+             FROM jobs ORDER BY created, id",
         )?;
         let rows = st.query_map([], |r| {
             let status: String = r.get(3)?;
@@ -288,6 +310,7 @@ impl Store {
                 error: r.get(10)?,
                 stats_json: r.get(11)?,
                 memory_bytes: r.get::<_, i64>(12)?.max(0) as u64,
+                result_estimate: r.get::<_, i64>(13)?.max(0) as u64,
             })
         })?;
         rows.collect()

@@ -350,8 +350,13 @@ fn a_store_that_lost_rows_never_hands_old_results_to_new_jobs() {
     }
     let s = Server::start(data, &[]);
     // The old job's files are set aside, not served.
-    let orphaned = data.join("results").join("orphaned");
-    assert!(orphaned.join(format!("{old}.png")).is_file());
+    // (in a folder of this start's own under results/orphaned)
+    let starts: Vec<_> = std::fs::read_dir(data.join("results").join("orphaned"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(starts.len(), 1, "{starts:?}");
+    assert!(starts[0].join(format!("{old}.png")).is_file());
     assert!(!data.join("results").join(format!("{old}.png")).exists());
     for t in [&bob, &alice, &s.admin] {
         assert_eq!(bytes(&s, t, &format!("/api/jobs/{old}/image.png")).0, 404);
@@ -449,7 +454,7 @@ fn a_corrupt_ppm_state_restarts_the_job_from_pass_0() {
     let s = Server::start(dir.path(), &["--max-running", "1"]);
     let t = s.admin.clone();
     let job = json!({"scene_name": "cornell_mirror_glass", "params": {"integrator": "ppm",
-        "iterations": 12, "width": 48, "height": 32, "photons": 30000,
+        "iterations": 40, "width": 48, "height": 32, "photons": 30000,
         "caustic_photons": 30000}});
     let id = submit(&s, &t, job.clone());
     follow(&s, &t, id, |e| {
@@ -543,4 +548,21 @@ fn small_receive_buffer(c: &TcpStream) {
         )
     };
     assert_eq!(r, 0, "setsockopt SO_RCVBUF");
+}
+
+#[test]
+fn a_second_server_on_the_same_data_folder_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_photonbox"))
+        .args(["serve", "--addr", "127.0.0.1:0", "--data"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("in use by another"), "{err}");
+    // The first one is untouched.
+    let (status, _) = get(&s, &s.admin, "/api/me");
+    assert_eq!(status, 200);
 }
