@@ -10,10 +10,13 @@ mod error;
 mod jobs;
 mod listen;
 mod metrics;
+mod needs;
+mod results;
 mod runner;
 mod scheduler;
 mod state;
 mod store;
+mod submit;
 
 use std::collections::HashMap;
 use std::io::Write;

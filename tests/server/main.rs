@@ -1,6 +1,7 @@
 //! Integration tests of `photonbox serve`: each starts a real server on an ephemeral port
 //! with a temporary data folder and talks to it over HTTP.
 
+mod connections;
 mod hardening;
 mod harness;
 mod memory;
