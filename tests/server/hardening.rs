@@ -218,17 +218,7 @@ fn the_admin_is_never_locked_out_by_a_lost_store() {
 fn user_add_before_the_first_serve_creates_the_store_and_the_admin() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("fresh");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_photonbox"))
-        .args(["user", "add", "alice", "--data"])
-        .arg(&data)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let alice = String::from_utf8(out.stdout).unwrap().trim().to_string();
+    let alice = user_add(&data, "alice");
     assert!(
         data.join("admin-token").is_file(),
         "the admin's token is written"

@@ -108,17 +108,7 @@ impl Server {
 
     /// Add a user with `photonbox user add` (while the server runs); returns its token.
     pub fn add_user(&self, name: &str) -> String {
-        let out = Command::new(env!("CARGO_BIN_EXE_photonbox"))
-            .args(["user", "add", name, "--data"])
-            .arg(&self.data)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).unwrap().trim().to_string()
+        user_add(&self.data, name)
     }
 }
 
@@ -127,6 +117,21 @@ impl Drop for Server {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+/// `photonbox user add NAME --data DATA`: the new user's token.
+pub fn user_add(data: &Path, name: &str) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_photonbox"))
+        .args(["user", "add", name, "--data"])
+        .arg(data)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap().trim().to_string()
 }
 
 pub fn client() -> Client {
