@@ -120,6 +120,10 @@ async fn authenticate(app: &AppRef, headers: &HeaderMap) -> Result<User, ApiErro
         .await?
         .ok_or_else(ApiError::unauthorized)?;
     app.users.lock().unwrap().insert(hash, user.clone());
+    app.user_names
+        .lock()
+        .unwrap()
+        .insert(user.id, user.name.clone());
     Ok(user)
 }
 

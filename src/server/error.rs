@@ -49,7 +49,20 @@ impl ApiError {
 }
 
 impl IntoResponse for ApiError {
+    /// User errors keep their status, message and path. Internal errors are logged once,
+    /// here, with a request id, and the client gets only the id: their detail (paths, SQL)
+    /// is the operator's, not the client's.
     fn into_response(self) -> Response {
+        if self.status.is_server_error() {
+            let id = &super::auth::new_token()[..12];
+            tracing::error!(request_id = id, "{}", self.message);
+            let body = json!({
+                "error": format!("internal error (request {id}: see the server's log)"),
+                "path": null,
+                "request_id": id,
+            });
+            return (self.status, Json(body)).into_response();
+        }
         let body = json!({ "error": self.message, "path": self.path });
         (self.status, Json(body)).into_response()
     }
@@ -57,7 +70,47 @@ impl IntoResponse for ApiError {
 
 impl From<rusqlite::Error> for ApiError {
     fn from(e: rusqlite::Error) -> ApiError {
-        tracing::error!("store: {e}");
         ApiError::internal(format!("store: {e}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn body(e: ApiError) -> (u16, serde_json::Value) {
+        let resp = e.into_response();
+        let status = resp.status().as_u16();
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .build()
+            .unwrap();
+        let bytes = rt
+            .block_on(axum::body::to_bytes(resp.into_body(), 1 << 16))
+            .unwrap();
+        (status, serde_json::from_slice(&bytes).unwrap())
+    }
+
+    #[test]
+    fn internal_errors_hide_their_detail_behind_a_request_id() {
+        let (status, v) = body(ApiError::internal(
+            "store: /srv/data/photonbox.sqlite3 is locked",
+        ));
+        assert_eq!(status, 500);
+        let text = v.to_string();
+        assert!(
+            !text.contains("sqlite3") && !text.contains("store"),
+            "{text}"
+        );
+        let id = v["request_id"].as_str().unwrap();
+        assert_eq!(id.len(), 12);
+        assert!(v["error"].as_str().unwrap().contains(id));
+    }
+
+    #[test]
+    fn user_errors_keep_their_message_and_path() {
+        let (status, v) = body(ApiError::invalid("params.k", "k must be at least 1"));
+        assert_eq!(status, 422);
+        assert_eq!(v["path"], "params.k");
+        assert_eq!(v["error"], "k must be at least 1");
     }
 }

@@ -185,48 +185,64 @@ impl ParamsJson {
     }
 }
 
-/// The built-in scenes (`scenes/*.json`).
+/// The built-in scenes (`scenes/*.json`), read once at start: the handlers that list and
+/// show them never touch the file system.
 pub struct SceneCatalog {
-    pub dir: PathBuf,
+    dir: PathBuf,
+    /// By name: the scene's JSON (None if it does not parse: it is listed, and refused when
+    /// a job names it, with the reason).
+    scenes: std::collections::BTreeMap<String, Option<Value>>,
 }
 
 impl SceneCatalog {
-    /// (name, description) of every built-in scene, sorted by name.
-    pub fn list(&self) -> Vec<(String, Option<String>)> {
-        let mut out = Vec::new();
-        let Ok(entries) = std::fs::read_dir(&self.dir) else {
-            return out;
-        };
-        for e in entries.flatten() {
+    pub fn load(dir: PathBuf) -> SceneCatalog {
+        let mut scenes = std::collections::BTreeMap::new();
+        for e in std::fs::read_dir(&dir).into_iter().flatten().flatten() {
             let path = e.path();
             if path.extension().is_some_and(|x| x == "json")
                 && let Some(stem) = path.file_stem().and_then(|s| s.to_str())
+                && plain_name(stem)
             {
-                let description = std::fs::read_to_string(&path)
+                let json = std::fs::read_to_string(&path)
                     .ok()
-                    .and_then(|t| serde_json::from_str::<Value>(&t).ok())
-                    .and_then(|v| v.get("description")?.as_str().map(str::to_string));
-                out.push((stem.to_string(), description));
+                    .and_then(|t| serde_json::from_str::<Value>(&t).ok());
+                scenes.insert(stem.to_string(), json);
             }
         }
-        out.sort();
-        out
+        SceneCatalog { dir, scenes }
     }
 
-    /// The path of a built-in scene, if `name` is one (names are plain file stems).
+    /// (name, description) of every built-in scene, sorted by name.
+    pub fn list(&self) -> Vec<(String, Option<String>)> {
+        self.scenes
+            .iter()
+            .map(|(name, json)| {
+                let description = json
+                    .as_ref()
+                    .and_then(|v| v.get("description")?.as_str().map(str::to_string));
+                (name.clone(), description)
+            })
+            .collect()
+    }
+
+    /// The path of a built-in scene, if `name` is one.
     pub fn path(&self, name: &str) -> Option<PathBuf> {
-        let plain = !name.is_empty()
-            && name
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
-        let p = self.dir.join(format!("{name}.json"));
-        (plain && p.is_file()).then_some(p)
+        self.scenes
+            .contains_key(name)
+            .then(|| self.dir.join(format!("{name}.json")))
     }
 
     pub fn json(&self, name: &str) -> Option<Value> {
-        let text = std::fs::read_to_string(self.path(name)?).ok()?;
-        serde_json::from_str(&text).ok()
+        self.scenes.get(name)?.clone()
     }
+}
+
+/// Built-in scene names are plain file stems.
+fn plain_name(name: &str) -> bool {
+    !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
 }
 
 /// The scene of a job: parsed and validated, with the texts the job is keyed by. Texts, not
@@ -287,8 +303,10 @@ pub fn resolve_scene(
             let internal = |e: &dyn std::fmt::Display| {
                 ApiError::internal(format!("built-in scene {name}: {e}"))
             };
-            let text = std::fs::read_to_string(&path).map_err(|e| internal(&e))?;
-            let mut json: Value = serde_json::from_str(&text).map_err(|e| internal(&e))?;
+            // Catalogued at start (its OBJ meshes are read from its folder now).
+            let mut json = catalog
+                .json(name)
+                .ok_or_else(|| internal(&"not valid JSON"))?;
             let (text, without_camera) = canonical_texts(&mut json);
             let desc = SceneDesc::from_value(json, path.parent()).map_err(|e| internal(&e))?;
             Ok(ResolvedScene {

@@ -203,9 +203,7 @@ impl App {
             submit: tokio::sync::Mutex::new(()),
             scheduler: Scheduler::new(config.max_running, config.limits.memory_bytes),
             cache: MapCache::new(config.cache_bytes),
-            catalog: SceneCatalog {
-                dir: config.scenes.clone(),
-            },
+            catalog: SceneCatalog::load(config.scenes.clone()),
             config,
             store,
             jobs: Jobs::default(),
@@ -270,14 +268,16 @@ impl App {
         self.jobs.publish(row.clone()).then_some(row)
     }
 
+    /// A user's name, from memory only (handlers never wait on the store for it): every
+    /// user is loaded at start, and one added since (`photonbox user add`) is learnt when it
+    /// first authenticates, which it must have done to own a job.
     fn user_name(&self, id: i64) -> String {
-        if let Some(n) = self.user_names.lock().unwrap().get(&id) {
-            return n.clone();
-        }
-        let names = self.store.user_names().unwrap_or_default();
-        let mut map = self.user_names.lock().unwrap();
-        map.extend(names);
-        map.get(&id).cloned().unwrap_or_else(|| format!("user{id}"))
+        self.user_names
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(&id)
+            .cloned()
+            .unwrap_or_else(|| format!("user{id}"))
     }
 }
 
