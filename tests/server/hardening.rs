@@ -300,11 +300,22 @@ fn a_corrupt_ppm_state_restarts_the_job_from_pass_0() {
 fn a_second_server_on_the_same_data_folder_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(dir.path(), &[]);
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_photonbox"))
+    let mut second = std::process::Command::new(env!("CARGO_BIN_EXE_photonbox"))
         .args(["serve", "--addr", "127.0.0.1:0", "--data"])
         .arg(dir.path())
-        .output()
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
         .unwrap();
+    // A refused server exits without a word on stdout; one that starts says it listens.
+    let mut first_line = String::new();
+    let mut stdout = std::io::BufReader::new(second.stdout.take().unwrap());
+    std::io::BufRead::read_line(&mut stdout, &mut first_line).unwrap();
+    if first_line.contains("listening") {
+        let _ = second.kill();
+        panic!("a second server started on the same data folder: {first_line}");
+    }
+    let out = second.wait_with_output().unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("in use by another"), "{err}");
