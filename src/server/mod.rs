@@ -193,7 +193,10 @@ fn write_admin_token(data: &Path, token: &str) -> anyhow::Result<()> {
 }
 
 impl App {
-    fn open(config: Config) -> anyhow::Result<(Arc<App>, Option<String>)> {
+    /// Open the data folder (locked for as long as the app lives), recover its jobs, and
+    /// return the app with the admin's token (None if its file is gone). Nothing renders
+    /// until a dispatcher runs (`serve` starts one), so handler tests can use the app alone.
+    pub fn open(config: Config) -> anyhow::Result<(Arc<App>, Option<String>)> {
         ensure_dirs(&config.data)?;
         let lock = lock_data_dir(&config.data)?;
         let store = Store::open(&config.data).context("opening the store")?;
@@ -281,6 +284,12 @@ impl App {
     }
 }
 
+/// The whole HTTP API and gallery as one router over `app`: `serve` runs it on its accept
+/// loop; tests can call it with `tower::ServiceExt::oneshot`, without a socket.
+pub fn app(app: AppRef) -> axum::Router {
+    api::router(app)
+}
+
 /// Run the server until SIGINT or SIGTERM. Prints the address and a sign-in URL.
 pub fn serve(config: Config) -> anyhow::Result<()> {
     let (app, admin_token) = App::open(config.clone())?;
@@ -307,7 +316,7 @@ pub fn serve(config: Config) -> anyhow::Result<()> {
             ),
         }
         let _ = std::io::stdout().flush();
-        let router = api::router(app.clone());
+        let router = self::app(app.clone());
         let app2 = app.clone();
         let mut conn = config.conn.clone();
         conn.max_connections = listen::connection_cap(conn.max_connections);
