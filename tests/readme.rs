@@ -9,21 +9,24 @@ use std::process::Command;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-/// The indented command lines of README.md's "Set up on a fresh machine" section.
+/// The command lines of README.md's "Set up on a fresh machine" section: the lines inside its
+/// fenced code blocks.
 fn setup_commands() -> Vec<String> {
     let readme = std::fs::read_to_string(Path::new(ROOT).join("README.md")).unwrap();
     let section = readme
         .split("\n## ")
         .find(|s| s.starts_with("Set up on a fresh machine"))
         .expect("README.md has a 'Set up on a fresh machine' section");
-    // Up to the first prose paragraph after the commands.
-    section
-        .lines()
-        .skip(1)
-        .take_while(|l| l.is_empty() || l.starts_with("    ") || l.ends_with(':'))
-        .filter(|l| l.starts_with("    "))
-        .map(|l| l.trim().to_string())
-        .collect()
+    let mut in_block = false;
+    let mut commands = Vec::new();
+    for line in section.lines() {
+        if line.starts_with("```") {
+            in_block = !in_block;
+        } else if in_block && !line.trim().is_empty() {
+            commands.push(line.trim().to_string());
+        }
+    }
+    commands
 }
 
 #[test]
