@@ -20,7 +20,7 @@ use tower_http::services::ServeFile;
 
 use super::auth::{self, User};
 use super::error::ApiError;
-use super::jobs::{remove_results, result_path};
+use super::results::{remove_results, result_path};
 use super::state::Snapshot;
 use super::store::{JobRow, Status, now};
 use super::{AppRef, metrics, submit};
@@ -297,13 +297,6 @@ async fn image(
     };
     let (row, _) = visible_job(&app, &user, &id)?;
     let path = result_path(&app.config.data, row.id, ext);
-    if tokio::fs::metadata(&path).await.is_err() {
-        return Err(ApiError::new(
-            StatusCode::NOT_FOUND,
-            None,
-            format!("no image yet: the job is {}", row.status.as_str()),
-        ));
-    }
     let mut req = req;
     if !row.status.is_final() {
         // A preview is replaced by the next pass: a range of it could join two files.
@@ -314,6 +307,14 @@ async fn image(
         .oneshot(req)
         .await
         .map_err(|e| ApiError::internal(format!("serving the image: {e}")))?;
+    if served.status() == StatusCode::NOT_FOUND {
+        // The file server's 404 (no file yet) in the API's words.
+        return Err(ApiError::new(
+            StatusCode::NOT_FOUND,
+            None,
+            format!("no image yet: the job is {}", row.status.as_str()),
+        ));
+    }
     if served.status().is_success() {
         let h = served.headers_mut();
         h.insert(header::CONTENT_TYPE, header::HeaderValue::from_static(mime));

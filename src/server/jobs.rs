@@ -12,9 +12,6 @@ use crate::render::photon::PhotonParams;
 use crate::render::scene::SceneDesc;
 use crate::render::{EffectSwitches, IntegratorKind, PhotonStore, RenderParams};
 
-pub use super::needs::{JobNeeds, Limits};
-pub use super::results::{remove_results, result_bytes, result_path, set_aside_orphans};
-
 /// `POST /api/jobs` body.
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]

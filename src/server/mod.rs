@@ -28,8 +28,8 @@ use std::time::Duration;
 use anyhow::Context;
 use tokio::sync::watch;
 
-pub use jobs::Limits;
 pub use listen::ConnLimits;
+pub use needs::Limits;
 
 use auth::User;
 use cache::MapCache;
@@ -130,9 +130,7 @@ fn ensure_admin(store: &Store, data: &Path) -> anyhow::Result<Option<String>> {
             "{} does not hold a token (64 hex digits): a new admin token replaces it",
             path.display()
         );
-        let (_, token) = store.add_user(&format!("admin-{}", &auth::new_token()[..8]), true)?;
-        write_admin_token(data, &token)?;
-        return Ok(Some(token));
+        return new_admin(store, data).map(Some);
     }
     if store
         .user_by_token_hash(&auth::token_hash(&token))?
@@ -148,11 +146,17 @@ fn ensure_admin(store: &Store, data: &Path) -> anyhow::Result<Option<String>> {
     if store.restore_admin(&auth::token_hash(&token)).is_err() {
         // An "admin" with another token exists: the file is stale; a new admin's token
         // replaces it.
-        let (_, token) = store.add_user(&format!("admin-{}", &auth::new_token()[..8]), true)?;
-        write_admin_token(data, &token)?;
-        return Ok(Some(token));
+        return new_admin(store, data).map(Some);
     }
     Ok(Some(token))
+}
+
+/// A further admin user (`admin-` and 8 random hex digits: "admin" is taken, or its token
+/// lost) whose token replaces the `admin-token` file.
+fn new_admin(store: &Store, data: &Path) -> anyhow::Result<String> {
+    let (_, token) = store.add_user(&format!("admin-{}", &auth::new_token()[..8]), true)?;
+    write_admin_token(data, &token)?;
+    Ok(token)
 }
 
 /// Take an exclusive lock on `data/lock` for as long as the returned file is open: a second
@@ -226,9 +230,9 @@ impl App {
         }
         let rows = self.store.all_jobs()?;
         let ids: std::collections::HashSet<i64> = rows.iter().map(|r| r.id).collect();
-        jobs::set_aside_orphans(&self.config.data, &ids);
+        results::set_aside_orphans(&self.config.data, &ids);
         for mut row in rows {
-            row.result_bytes = jobs::result_bytes(&self.config.data, row.id);
+            row.result_bytes = results::result_bytes(&self.config.data, row.id);
             if !row.status.is_final() {
                 row.result_bytes = row.result_bytes.max(row.result_estimate);
             }
@@ -265,8 +269,8 @@ impl App {
         }
         if row.status.is_final() {
             // A progressive job's saved state is kept only while the job may resume.
-            jobs::remove_results(&self.config.data, id, &["ppmstate"]);
-            row.result_bytes = jobs::result_bytes(&self.config.data, id);
+            results::remove_results(&self.config.data, id, &["ppmstate"]);
+            row.result_bytes = results::result_bytes(&self.config.data, id);
         }
         self.jobs.publish(row.clone()).then_some(row)
     }

@@ -10,7 +10,8 @@ use serde_json::{Value, json};
 
 use super::App;
 use super::cache::CacheOutcome;
-use super::jobs::{JobParams, ParamsJson, cache_key, resolve_scene, result_path};
+use super::jobs::{JobParams, ParamsJson, cache_key, resolve_scene};
+use super::results::result_path;
 use super::state::Snapshot;
 use super::store::{Status, now};
 use crate::render::effects::analyse;

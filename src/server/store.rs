@@ -1,6 +1,6 @@
 //! The durable store: users and jobs in SQLite (WAL, synchronous=FULL: a job acknowledged
 //! with 202 has been committed and survives SIGKILL or power loss). Result images are files
-//! beside it (see `jobs::result_path`). The server keeps a live in-memory view of the jobs
+//! beside it (see `results::result_path`). The server keeps a live in-memory view of the jobs
 //! and writes every state change through to here.
 
 use std::path::Path;
@@ -73,11 +73,11 @@ pub struct JobRow {
     /// last measured; with `scene_bytes`, what the job takes of its owner's storage quota
     /// (at least `result_estimate` until the job is final).
     pub result_bytes: u64,
-    /// The estimated size of the result files (`jobs::JobNeeds::result_bytes`), stored.
+    /// The estimated size of the result files (`needs::JobNeeds::result_bytes`), stored.
     pub result_estimate: u64,
     /// The job's parameters as submitted (validated).
     pub params_json: String,
-    /// Estimated peak memory of the render (`jobs::JobNeeds`), kept so that a restart can
+    /// Estimated peak memory of the render (`needs::JobNeeds`), kept so that a restart can
     /// queue the job without parsing its scene again.
     pub memory_bytes: u64,
     pub created: f64,

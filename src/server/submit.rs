@@ -14,7 +14,8 @@ use super::AppRef;
 use super::api::{blocking, visible};
 use super::auth::User;
 use super::error::ApiError;
-use super::jobs::{JobNeeds, JobRequest, ParamsJson, from_json, resolve_scene};
+use super::jobs::{JobRequest, ParamsJson, from_json, resolve_scene};
+use super::needs::JobNeeds;
 use super::store::{JobRow, Status, now};
 
 pub async fn submit_job(
