@@ -12,18 +12,19 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use glam::Vec3A;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use photonbox::render::photon::{KdItem, KdTree, KnnScratch, Photon, PhotonStore};
-use photonbox::render::{Control, RenderParams, Scene, trace_maps};
+use photonbox::render::{Control, Scene, trace_maps};
+use photonbox::spec::{PhotonMapping, RenderSpec};
 
 /// Stored photons of scene (1), `stored` of them (every non-specular hit is kept).
 fn photons(stored: usize) -> Vec<Photon> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json");
     let scene = Scene::load(&path).expect("scene 1 loads");
-    let params = RenderParams {
+    let params = RenderSpec::photon(PhotonMapping {
         photons: stored as u64,
         caustic_photons: 0,
         photon_store: PhotonStore::All,
-        ..RenderParams::default()
-    };
+        ..PhotonMapping::PHOTON
+    });
     let maps = trace_maps(&scene, &params, &Control::none()).expect("not cancelled");
     let mut v = maps.global.expect("a global map").tree.items().to_vec();
     v.truncate(stored);

@@ -5,10 +5,13 @@
 //!     cargo bench --bench render
 
 use std::hint::black_box;
+use std::ops::ControlFlow;
 use std::path::Path;
+use std::sync::Arc;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use photonbox::render::{Control, RenderParams, Scene, render_with_maps, trace_maps};
+use photonbox::render::{Control, Inputs, Prebuilt, Scene, run, trace_maps};
+use photonbox::spec::{PhotonMapping, RenderSpec};
 
 fn scene1() -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json");
@@ -23,11 +26,11 @@ fn photon_tracing(c: &mut Criterion) {
         ("global_1M", 1_000_000u64, 0u64),
         ("caustic_1M", 0, 1_000_000),
     ] {
-        let params = RenderParams {
+        let params = RenderSpec::photon(PhotonMapping {
             photons: global,
             caustic_photons: caustic,
-            ..RenderParams::default()
-        };
+            ..PhotonMapping::PHOTON
+        });
         g.throughput(Throughput::Elements(global + caustic));
         g.bench_function(label, |b| {
             b.iter(|| black_box(trace_maps(&scene, &params, &Control::none()).unwrap()))
@@ -41,20 +44,31 @@ fn camera_pass(c: &mut Criterion) {
     let mut g = c.benchmark_group("camera_pass_scene1_512");
     g.sample_size(10);
     for k in [1usize, 10, 100] {
-        let params = RenderParams {
-            photons: 100_000,
-            caustic_photons: 100_000,
-            k,
-            gather_rays: 0,
-            spp: 1,
+        let params = RenderSpec {
             width: Some(512),
             height: Some(512),
-            ..RenderParams::default()
+            ..RenderSpec::photon(PhotonMapping {
+                photons: 100_000,
+                caustic_photons: 100_000,
+                k,
+                gather_rays: 0,
+                spp: 1,
+                ..PhotonMapping::PHOTON
+            })
         };
-        let maps = trace_maps(&scene, &params, &Control::none()).unwrap();
+        let maps = Prebuilt(Arc::new(
+            trace_maps(&scene, &params, &Control::none()).unwrap(),
+        ));
         g.bench_function(format!("k{k}"), |b| {
             b.iter(|| {
-                black_box(render_with_maps(&scene, &maps, &params, &Control::none()).unwrap())
+                let inputs = Inputs {
+                    maps: &maps,
+                    ..Inputs::fresh()
+                };
+                black_box(run(&scene, &params, inputs, &Control::none(), &mut |_| {
+                    ControlFlow::Continue(())
+                }))
+                .unwrap()
             })
         });
     }

@@ -4,7 +4,9 @@
 //! Zwicker 2011), to be served over HTTP.
 //!
 //! # Layout
-//! - [`render`]: the engine. Scene loading and validation (`render::scene`), geometry and
+//! - [`spec`]: the render spec (`RenderSpec`), its REST/CLI/stored form, defaults and
+//!   validation: what every front end converts into.
+//! - [`render`]: the engine, whose one entry point is `render::run`. Scene loading and validation (`render::scene`), geometry and
 //!   the BVH (`render::geometry`), materials, lights, the camera, photon tracing and photon
 //!   maps (`render::photon`), the integrators (`render::integrator`), the film and image
 //!   output, and the pipeline that runs the phases of a render in order.
@@ -19,3 +21,4 @@
 
 pub mod render;
 pub mod server;
+pub mod spec;

@@ -6,7 +6,7 @@ mod progress;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(name = "photonbox", version, about = "A photon-mapping renderer")]
@@ -128,7 +128,7 @@ fn main() -> ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
-    let cli = Cli::parse();
+    let cli = parse_cli();
     let result = match cli.command {
         Command::Render(args) => cli::render::run_render(args),
         Command::Sweep(args) => cli::sweep::run_sweep(args),
@@ -147,6 +147,14 @@ fn main() -> ExitCode {
             ExitCode::from(if bad { EXIT_BAD_INPUT } else { 1 })
         }
     }
+}
+
+/// The command line, with the spec's defaults in the render and sweep help.
+fn parse_cli() -> Cli {
+    let cmd = Cli::command()
+        .mut_subcommand("render", cli::with_spec_defaults)
+        .mut_subcommand("sweep", cli::with_spec_defaults);
+    Cli::from_arg_matches(&cmd.get_matches()).unwrap_or_else(|e| e.exit())
 }
 
 fn bad(msg: impl Into<String>) -> anyhow::Error {

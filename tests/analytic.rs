@@ -7,7 +7,8 @@ use std::f64::consts::PI;
 use common::{analytic_pixels, fresnel, point_lit, rel, render_image, scene};
 use glam::DVec3;
 use photonbox::render::photon::PhotonStore;
-use photonbox::render::{Control, IntegratorKind, RenderParams, Scene, trace_maps};
+use photonbox::render::{Control, Scene, trace_maps};
+use photonbox::spec::{PhotonMapping, RenderSpec};
 
 /// (a) A point light over a large diffuse floor seen from straight above.
 fn floor_scene(power: f64, albedo: f64) -> String {
@@ -55,11 +56,7 @@ fn point_light_over_floor_raytrace_within_1_percent_per_pixel() {
     let (power, albedo) = (50.0, 0.6);
     let s = scene(&floor_scene(power, albedo));
     let want = floor_analytic(&s, power, albedo);
-    let params = RenderParams {
-        integrator: IntegratorKind::Raytrace,
-        spp: 256,
-        ..RenderParams::default()
-    };
+    let params = RenderSpec::raytrace(256);
     let got = channel0(&render_image(&s, &params));
     let worst = got
         .iter()
@@ -77,14 +74,13 @@ fn point_light_over_floor_direct_photons_within_3_percent() {
     let (power, albedo) = (50.0, 0.6);
     let s = scene(&floor_scene(power, albedo));
     let want = floor_analytic(&s, power, albedo);
-    let params = RenderParams {
-        integrator: IntegratorKind::Photon,
+    let params = RenderSpec::photon(PhotonMapping {
         photon_store: PhotonStore::DirectOnly,
         photons: 1_000_000,
         k: 50,
         spp: 1,
-        ..RenderParams::default()
-    };
+        ..PhotonMapping::PHOTON
+    });
     let got = channel0(&render_image(&s, &params));
     // The central region (the light's foot and its surroundings) and four off-centre ones.
     for (x0, x1) in [(16, 48), (0, 16), (48, 64), (24, 40)] {
@@ -117,16 +113,17 @@ fn closed_sphere(albedo: f64, radius: f64, power: f64) -> String {
 
 /// The image mean within 2%, and each 12x12-pixel block (a different patch of the sphere)
 /// within `block_tol`, which allows for the photon map's noise.
-fn check_closed_sphere(params: RenderParams, block_tol: f64) {
+fn check_closed_sphere(params: RenderSpec, block_tol: f64) {
     let (a, r, p) = (0.5, 2.0, 10.0);
     let want = (a / PI) * p / (4.0 * PI * r * r) / (1.0 - a);
     let s = scene(&closed_sphere(a, r, p));
     let img = render_image(&s, &params);
     let mean = img.mean_rgb(0, 0, 48, 48)[0];
+    let p = params.photon_mapping().expect("photon mapping");
     eprintln!(
         "closed sphere {:?} G={}: mean {:+.5}",
-        params.photon_store,
-        params.gather_rays,
+        p.photon_store,
+        p.gather_rays,
         rel(mean, want)
     );
     assert!(
@@ -150,13 +147,13 @@ fn check_closed_sphere(params: RenderParams, block_tol: f64) {
 #[test]
 fn closed_sphere_photon_indirect_within_2_percent() {
     check_closed_sphere(
-        RenderParams {
+        RenderSpec::photon(PhotonMapping {
             photons: 200_000,
             k: 100,
             gather_rays: 0,
             spp: 1,
-            ..RenderParams::default()
-        },
+            ..PhotonMapping::PHOTON
+        }),
         0.04,
     );
 }
@@ -164,14 +161,14 @@ fn closed_sphere_photon_indirect_within_2_percent() {
 #[test]
 fn closed_sphere_photon_all_within_2_percent() {
     check_closed_sphere(
-        RenderParams {
+        RenderSpec::photon(PhotonMapping {
             photon_store: PhotonStore::All,
             photons: 400_000,
             k: 100,
             gather_rays: 0,
             spp: 1,
-            ..RenderParams::default()
-        },
+            ..PhotonMapping::PHOTON
+        }),
         0.06,
     );
 }
@@ -179,13 +176,13 @@ fn closed_sphere_photon_all_within_2_percent() {
 #[test]
 fn closed_sphere_final_gather_within_2_percent() {
     check_closed_sphere(
-        RenderParams {
+        RenderSpec::photon(PhotonMapping {
             photons: 100_000,
             k: 50,
             gather_rays: 16,
             spp: 1,
-            ..RenderParams::default()
-        },
+            ..PhotonMapping::PHOTON
+        }),
         0.04,
     );
 }
@@ -274,11 +271,13 @@ fn check_glass_sphere(ior: f64) {
     }}"#
     );
     let s = scene(&json);
-    let params = RenderParams {
-        caustic_photons: 2_000_000,
-        photons: 1000,
+    let params = RenderSpec {
         max_depth: 64,
-        ..RenderParams::default()
+        ..RenderSpec::photon(PhotonMapping {
+            caustic_photons: 2_000_000,
+            photons: 1000,
+            ..PhotonMapping::PHOTON
+        })
     };
     let maps = trace_maps(&s, &params, &Control::none()).unwrap();
     let caustic = maps
@@ -301,12 +300,12 @@ fn check_glass_sphere(ior: f64) {
 fn doubling_photons_leaves_brightness_unchanged() {
     let s = scene(&floor_scene(50.0, 0.6));
     let mean = |photons| {
-        let params = RenderParams {
+        let params = RenderSpec::photon(PhotonMapping {
             photon_store: PhotonStore::DirectOnly,
             photons,
             spp: 1,
-            ..RenderParams::default()
-        };
+            ..PhotonMapping::PHOTON
+        });
         render_image(&s, &params).mean_rgb(0, 0, 64, 64)[1]
     };
     let (a, b) = (mean(300_000), mean(600_000));

@@ -7,18 +7,19 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use photonbox::render::{Cancelled, Control, Phase, Progress, RenderParams, Scene, render};
+use photonbox::render::{Cancelled, Control, Phase, Progress, RenderError, Scene, render};
+use photonbox::spec::{PhotonMapping, RenderSpec};
 
 /// Times of one cancelled render: a tile row's work, and from the flag to the return.
 struct Cancel {
-    result: Result<(), Cancelled>,
+    result: Result<(), RenderError>,
     row: Duration,
     latency: Duration,
 }
 
 /// Render `params` and set the cancel flag at the camera pass's first report after work
 /// (the end of its first tile row), when the rest of that tile is still to do.
-fn cancel_after_first_row(scene: &Scene, params: &RenderParams) -> Cancel {
+fn cancel_after_first_row(scene: &Scene, params: &RenderSpec) -> Cancel {
     let cancel = AtomicBool::new(false);
     let marks = Mutex::new((None::<Instant>, None::<(Instant, Duration)>));
     let cb = |p: Progress| {
@@ -56,18 +57,20 @@ fn cancel_after_first_row(scene: &Scene, params: &RenderParams) -> Cancel {
 fn cancel_stops_the_camera_pass_within_a_few_samples() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json");
     let scene = Scene::load(&path).unwrap();
-    let params = RenderParams {
-        photons: 20_000,
-        caustic_photons: 20_000,
-        gather_rays: 256,
-        spp: 256,
+    let params = RenderSpec {
         width: Some(16),
         height: Some(16),
-        ..RenderParams::default()
+        ..RenderSpec::photon(PhotonMapping {
+            photons: 20_000,
+            caustic_photons: 20_000,
+            gather_rays: 256,
+            spp: 256,
+            ..PhotonMapping::PHOTON
+        })
     };
     let c = cancel_after_first_row(&scene, &params);
     eprintln!("row {:?}, latency {:?}", c.row, c.latency);
-    assert_eq!(c.result, Err(Cancelled));
+    assert_eq!(c.result, Err(Cancelled.into()));
     assert!(
         c.latency * 8 < c.row,
         "latency {:?} against {:?} for a row of 4096 samples",

@@ -68,12 +68,14 @@ fn aimed_caustic_photons_store_more_and_carry_the_same_flux() {
 fn a_diffuse_only_scene_traces_no_caustic_photons() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_spheres.json");
     let scene = photonbox::render::Scene::load(&path).unwrap();
-    let params = photonbox::render::RenderParams {
-        photons: 20_000,
-        caustic_photons: 20_000,
+    let params = photonbox::spec::RenderSpec {
         width: Some(16),
         height: Some(16),
-        ..Default::default()
+        ..photonbox::spec::RenderSpec::photon(photonbox::spec::PhotonMapping {
+            photons: 20_000,
+            caustic_photons: 20_000,
+            ..photonbox::spec::PhotonMapping::PHOTON
+        })
     };
     let out = photonbox::render::render(&scene, &params, &Control::none()).unwrap();
     assert_eq!(out.stats.photons.caustic_emitted, 0);

@@ -5,24 +5,25 @@ use std::path::Path;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use photonbox::render::{
-    Cancelled, Control, Phase, Progress, RenderParams, Scene, SceneDesc, render,
-};
+use photonbox::render::{Cancelled, Control, Phase, Progress, Scene, SceneDesc, render};
+use photonbox::spec::{PhotonMapping, RenderSpec};
 
 fn scene1() -> Scene {
     Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json"))
         .unwrap()
 }
 
-fn params() -> RenderParams {
-    RenderParams {
-        photons: 100_000,
-        caustic_photons: 100_000,
-        gather_rays: 2,
-        spp: 1,
+fn params() -> RenderSpec {
+    RenderSpec {
         width: Some(64),
         height: Some(64),
-        ..RenderParams::default()
+        ..RenderSpec::photon(PhotonMapping {
+            photons: 100_000,
+            caustic_photons: 100_000,
+            gather_rays: 2,
+            spp: 1,
+            ..PhotonMapping::PHOTON
+        })
     }
 }
 
@@ -84,7 +85,11 @@ fn cancel_stops_every_phase() {
         p.width = Some(256);
         p.height = Some(256);
         let result = render(&scene, &p, &control);
-        assert_eq!(result.err(), Some(Cancelled), "cancel during {phase:?}");
+        assert_eq!(
+            result.err(),
+            Some(Cancelled.into()),
+            "cancel during {phase:?}"
+        );
         assert!(
             !finished.load(Ordering::Relaxed),
             "{phase:?} ran to its end"
@@ -96,7 +101,10 @@ fn cancel_stops_every_phase() {
         cancel: Some(&cancel),
         progress: None,
     };
-    assert_eq!(render(&scene, &params(), &control).err(), Some(Cancelled));
+    assert_eq!(
+        render(&scene, &params(), &control).err(),
+        Some(Cancelled.into())
+    );
 }
 
 /// Scene building reports its own phase to completion, and a cancel from inside it (after

@@ -4,7 +4,8 @@
 
 use std::time::{Duration, Instant};
 
-use photonbox::render::{Control, RenderParams, Scene, SceneDesc, render};
+use photonbox::render::{Control, Scene, SceneDesc, render};
+use photonbox::spec::{PhotonMapping, RenderSpec};
 use serde_json::json;
 
 /// Triangles per scene: enough that a quadratic build is many times a linear one.
@@ -146,13 +147,13 @@ fn ordinary_scenes_keep_the_ploc_build() {
 /// copies (a PLOC BVH; 16 or fewer are tested one by one), bit for bit.
 #[test]
 fn copies_render_the_same_image_with_either_build() {
-    let params = RenderParams {
+    let params = RenderSpec::photon(PhotonMapping {
         photons: 20_000,
         caustic_photons: 0,
         gather_rays: 4,
         spp: 2,
-        ..RenderParams::default()
-    };
+        ..PhotonMapping::PHOTON
+    });
     let few = Scene::build(&copies(17, 0.5));
     let many = Scene::build(&copies(2_000, 0.5));
     assert!(!few.accel.built_top_down() && many.accel.built_top_down());

@@ -5,9 +5,10 @@
 use std::path::Path;
 
 use photonbox::render::photon::PhotonStore;
-use photonbox::render::{Control, IntegratorKind, RenderParams, Scene, render};
+use photonbox::render::{Control, Scene, render};
+use photonbox::spec::{PhotonMapping, RenderSpec};
 
-fn render_with_threads(scene: &Scene, params: &RenderParams, threads: usize) -> Vec<[f32; 3]> {
+fn render_with_threads(scene: &Scene, params: &RenderSpec, threads: usize) -> Vec<[f32; 3]> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -20,7 +21,7 @@ fn render_with_threads(scene: &Scene, params: &RenderParams, threads: usize) -> 
     })
 }
 
-fn check(scene_file: &str, params: RenderParams) {
+fn check(scene_file: &str, params: RenderSpec) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("scenes")
         .join(scene_file);
@@ -40,27 +41,32 @@ fn check(scene_file: &str, params: RenderParams) {
     assert!(one.iter().flatten().any(|c| *c > 0.0));
 }
 
-fn small() -> RenderParams {
-    RenderParams {
-        photons: 30_000,
-        caustic_photons: 30_000,
-        spp: 2,
+/// `photon` at 48x40 with `p`'s settings.
+fn small(p: PhotonMapping) -> RenderSpec {
+    RenderSpec {
         width: Some(48),
         height: Some(40),
-        ..RenderParams::default()
+        ..RenderSpec::photon(p)
     }
 }
+
+const SMALL: PhotonMapping = PhotonMapping {
+    photons: 30_000,
+    caustic_photons: 30_000,
+    spp: 2,
+    ..PhotonMapping::PHOTON
+};
 
 #[test]
 fn photon_map_without_gathering() {
     for k in [1, 50] {
         check(
             "cornell_mirror_glass.json",
-            RenderParams {
+            small(PhotonMapping {
                 k,
                 gather_rays: 0,
-                ..small()
-            },
+                ..SMALL
+            }),
         );
     }
 }
@@ -74,11 +80,11 @@ fn final_gathering_and_store_modes() {
     ] {
         check(
             "glass_orange.json",
-            RenderParams {
+            small(PhotonMapping {
                 photon_store: store,
                 gather_rays: 3,
-                ..small()
-            },
+                ..SMALL
+            }),
         );
     }
 }
@@ -87,18 +93,19 @@ fn final_gathering_and_store_modes() {
 fn raytrace_glossy_area_light_and_mesh() {
     check(
         "phong_spheres.json",
-        RenderParams {
-            integrator: IntegratorKind::Raytrace,
-            ..small()
+        RenderSpec {
+            width: Some(48),
+            height: Some(40),
+            ..RenderSpec::raytrace(2)
         },
     );
-    check("phong_spheres.json", small());
-    check("cornell.json", small());
+    check("phong_spheres.json", small(SMALL));
+    check("cornell.json", small(SMALL));
     check(
         "knot.json",
-        RenderParams {
+        small(PhotonMapping {
             gather_rays: 1,
-            ..small()
-        },
+            ..SMALL
+        }),
     );
 }

@@ -4,7 +4,8 @@
 mod common;
 
 use common::{render_checked, scene};
-use photonbox::render::{Control, EffectSwitches, RenderParams, Scene, render};
+use photonbox::render::{Control, Scene, render};
+use photonbox::spec::{EffectSwitches, PhotonMapping, RenderSpec};
 
 fn scene_file(name: &str) -> Scene {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -13,17 +14,19 @@ fn scene_file(name: &str) -> Scene {
     Scene::load(&path).unwrap()
 }
 
-fn small(effects: EffectSwitches) -> RenderParams {
-    RenderParams {
-        photons: 100_000,
-        caustic_photons: 100_000,
-        k: 30,
-        gather_rays: 0,
-        spp: 2,
+fn small(effects: EffectSwitches) -> RenderSpec {
+    RenderSpec {
         width: Some(48),
         height: Some(48),
         effects,
-        ..RenderParams::default()
+        ..RenderSpec::photon(PhotonMapping {
+            photons: 100_000,
+            caustic_photons: 100_000,
+            k: 30,
+            gather_rays: 0,
+            spp: 2,
+            ..PhotonMapping::PHOTON
+        })
     }
 }
 
@@ -160,14 +163,14 @@ fn cube(material: &str) -> String {
 
 #[test]
 fn a_light_shut_in_a_closed_object_emits_no_photons() {
-    let params = RenderParams {
+    let params = RenderSpec::photon(PhotonMapping {
         photons: 50_000,
         caustic_photons: 0,
         k: 20,
         gather_rays: 0,
         spp: 1,
-        ..RenderParams::default()
-    };
+        ..PhotonMapping::PHOTON
+    });
     for shell in [SPHERE.to_string(), cube("white")] {
         let s = scene(&shut_scene(&shell, OUTSIDE));
         assert_eq!(s.shut_in, vec![None, Some(1)], "{shell}");
@@ -199,13 +202,13 @@ fn a_light_shut_in_a_closed_object_emits_no_photons() {
 fn with_every_light_shut_in_nothing_is_traced_and_the_image_is_black() {
     let json = shut_scene(SPHERE, OUTSIDE).replace("40, 40, 40", "0, 0, 0");
     let s = scene(&json);
-    let params = RenderParams {
+    let params = RenderSpec::photon(PhotonMapping {
         photons: 10_000,
         caustic_photons: 10_000,
         k: 500,
         spp: 1,
-        ..RenderParams::default()
-    };
+        ..PhotonMapping::PHOTON
+    });
     let out = render_checked(&s, &params);
     assert_eq!(out.stats.photons.global_emitted, 0);
     assert_eq!(out.stats.photons.global_stored, 0);

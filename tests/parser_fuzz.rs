@@ -13,9 +13,8 @@ mod common;
 
 use photonbox::render::geometry::Surface;
 use photonbox::render::scene::{LightDesc, ShapeDesc};
-use photonbox::render::{
-    Control, IntegratorKind, RenderParams, Scene, SceneDesc, SceneError, render,
-};
+use photonbox::render::{Control, Scene, SceneDesc, SceneError, render};
+use photonbox::spec::RenderSpec;
 use proptest::prelude::*;
 use proptest::sample::Index;
 use serde_json::{Map, Value, json};
@@ -68,12 +67,10 @@ fn parse_and_render(text: &str) -> Result<Parsed, TestCaseError> {
         }
     };
     let scene = Scene::parse(text, None).expect("SceneDesc parsed, so Scene parses");
-    let params = RenderParams {
-        integrator: IntegratorKind::Raytrace,
+    let params = RenderSpec {
         width: Some(4),
         height: Some(4),
-        spp: 1,
-        ..RenderParams::default()
+        ..RenderSpec::raytrace(1)
     };
     params.validate().expect("valid render parameters");
     let out = render(&scene, &params, &Control::none()).expect("not cancelled");
@@ -778,12 +775,10 @@ fn a_distant_light_leaves_the_camera_defined() {
     assert!(d.is_finite(), "camera ray direction {d:?}");
     // The same light at 1e4 with its power scaled by (1e4 / 1e9)^2 gives the same image (to
     // 1e-4 in the light's direction): a distant light must not blur the geometry.
-    let params = RenderParams {
-        integrator: IntegratorKind::Raytrace,
-        spp: 4,
+    let params = RenderSpec {
         width: Some(8),
         height: Some(8),
-        ..RenderParams::default()
+        ..RenderSpec::raytrace(4)
     };
     let near = text
         .replace("[0, 0, 1e9]", "[0, 0, 1e4]")

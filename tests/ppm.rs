@@ -8,8 +8,9 @@ use std::ops::ControlFlow;
 
 use common::{assert_all_finite, scene};
 use photonbox::render::photon::PhotonStore;
-use photonbox::render::ppm::{self, PpmOptions, PpmOutput, PpmState, Stop, StopReason};
-use photonbox::render::{Control, Image, RenderParams, Scene};
+use photonbox::render::ppm::{PpmState, StopReason};
+use photonbox::render::{Control, Image, Inputs, RenderError, RenderOutput, Scene, run};
+use photonbox::spec::{PhotonMapping, Progressive, RenderSpec, Stop};
 
 /// A point light over a large diffuse floor, seen from above (as in tests/analytic.rs).
 const FLOOR: &str = r#"{
@@ -35,51 +36,68 @@ const CAUSTIC: &str = r#"{
     "lights": [{"type": "point", "position": [0, 3, 0], "power": [200, 200, 200]}]
 }"#;
 
-fn ppm_params(photons: u64, iterations: u32) -> RenderParams {
-    RenderParams {
-        photons,
-        caustic_photons: photons,
-        iterations,
-        ..RenderParams::ppm_defaults()
+fn ppm_params(photons: u64, iterations: u32) -> Progressive {
+    Progressive {
+        pass: PhotonMapping {
+            photons,
+            caustic_photons: photons,
+            ..PhotonMapping::PPM_PASS
+        },
+        stop: Stop::after(iterations),
+        ..Progressive::DEFAULT
     }
 }
 
-fn options(iterations: u32, resume: Option<PpmState>) -> PpmOptions<'static> {
-    PpmOptions {
+/// A ppm render from `resume` (or pass 0), with the image after every pass; `on_pass` may
+/// stop it.
+fn run_with(
+    scene: &Scene,
+    spec: &RenderSpec,
+    resume: Option<PpmState>,
+    scene_key: &[u8],
+    on_pass: &mut dyn FnMut(&PpmState) -> ControlFlow<()>,
+) -> Result<RenderOutput, RenderError> {
+    let inputs = Inputs {
         resume,
-        ..PpmOptions::new(Stop::after(iterations), "test".into())
-    }
+        scene_key,
+        ..Inputs::fresh()
+    };
+    run(scene, spec, inputs, &Control::none(), on_pass)
 }
 
 /// A ppm render, with the image after every pass.
-fn run(scene: &Scene, params: &RenderParams, resume: Option<PpmState>) -> (PpmOutput, Vec<Image>) {
+fn render_ppm(
+    scene: &Scene,
+    p: Progressive,
+    resume: Option<PpmState>,
+) -> (RenderOutput, Vec<Image>) {
     let mut images = Vec::new();
-    let out = ppm::render_ppm(
-        scene,
-        params,
-        options(params.iterations, resume),
-        &Control::none(),
-        &mut |s| {
-            images.push(s.image());
-            ControlFlow::Continue(())
-        },
-    )
+    let spec = RenderSpec::ppm(p);
+    let out = run_with(scene, &spec, resume, b"test", &mut |s| {
+        images.push(s.image());
+        ControlFlow::Continue(())
+    })
     .unwrap();
-    assert_all_finite(&out.output.image);
+    assert_all_finite(&out.image);
     (out, images)
+}
+
+/// The passes a render reports.
+fn history(out: &RenderOutput) -> &[photonbox::render::ppm::PassStats] {
+    &out.stats.ppm.as_ref().expect("a ppm render").history
 }
 
 #[test]
 fn radius_follows_the_knaus_zwicker_schedule() {
     let s = scene(CAUSTIC);
     for (radius, alpha) in [(Some(0.3f32), 0.7), (None, 0.5)] {
-        let params = RenderParams {
+        let params = Progressive {
             radius,
             alpha,
             ..ppm_params(5_000, 12)
         };
-        let (out, _) = run(&s, &params, None);
-        let h = &out.state.history;
+        let (out, _) = render_ppm(&s, params, None);
+        let h = history(&out);
         assert_eq!(h.len(), 12);
         let r0 = [h[0].radius_global, h[0].radius_caustic];
         match radius {
@@ -110,7 +128,7 @@ fn radius_follows_the_knaus_zwicker_schedule() {
             factor *= (i as f64 + 1.0 + alpha) / (i as f64 + 2.0);
         }
         assert!(h[11].radius_global < 0.75 * h[0].radius_global);
-        let report = out.output.stats.ppm.as_ref().unwrap();
+        let report = out.stats.ppm.as_ref().unwrap();
         assert_eq!((report.passes, report.alpha), (12, alpha));
         assert_eq!(report.stopped_by, StopReason::Iterations);
     }
@@ -121,12 +139,12 @@ fn radius_follows_the_knaus_zwicker_schedule() {
 #[test]
 fn ppm_converges_under_a_point_light() {
     let s = scene(FLOOR);
-    let params = RenderParams {
-        photon_store: PhotonStore::DirectOnly,
+    let mut params = Progressive {
         radius: Some(0.6),
         ..ppm_params(40_000, 64)
     };
-    let (_, images) = run(&s, &params, None);
+    params.pass.photon_store = PhotonStore::DirectOnly;
+    let (_, images) = render_ppm(&s, params, None);
     // The centre 4x4 pixels look straight down at the peak: E = P/(4 pi h^2) (cos = 1).
     let want = 0.5 / PI * 100.0 / (4.0 * PI);
     let peak = |img: &Image| img.mean_rgb(22, 22, 26, 26)[0] / want - 1.0;
@@ -177,9 +195,8 @@ fn ppm_is_bit_identical_across_thread_counts() {
             .num_threads(threads)
             .build()
             .unwrap();
-        let (out, _) = pool.install(|| run(&s, &params, None));
-        out.output
-            .image
+        let (out, _) = pool.install(|| render_ppm(&s, params.clone(), None));
+        out.image
             .pixels
             .iter()
             .flatten()
@@ -196,11 +213,12 @@ fn ppm_is_bit_identical_across_thread_counts() {
 fn resumed_render_equals_an_uninterrupted_one() {
     let s = scene(CAUSTIC);
     let params = ppm_params(8_000, 6);
-    let (full, _) = run(&s, &params, None);
+    let (full, _) = render_ppm(&s, params.clone(), None);
 
     // Stop after pass 2 (the callback asks to), save, load, continue to 6.
     let mut saved = Vec::new();
-    let first = ppm::render_ppm(&s, &params, options(6, None), &Control::none(), &mut |st| {
+    let spec = RenderSpec::ppm(params.clone());
+    let first = run_with(&s, &spec, None, b"test", &mut |st| {
         if st.passes == 2 {
             st.save(&mut saved).unwrap();
             ControlFlow::Break(())
@@ -209,78 +227,63 @@ fn resumed_render_equals_an_uninterrupted_one() {
         }
     })
     .unwrap();
-    assert_eq!(first.state.passes, 2);
-    assert_eq!(
-        first.output.stats.ppm.unwrap().stopped_by,
-        StopReason::Paused
-    );
+    let report = first.stats.ppm.as_ref().unwrap();
+    assert_eq!(report.passes, 2);
+    assert_eq!(report.stopped_by, StopReason::Paused);
+    assert!(first.paused());
     let state = PpmState::load(&saved[..]).unwrap();
-    let (resumed, passes_seen) = run(&s, &params, Some(state));
+    let (resumed, passes_seen) = render_ppm(&s, params, Some(state));
     assert_eq!(passes_seen.len(), 4, "passes 3..=6 run after resuming");
-    assert_eq!(resumed.state.passes, 6);
-    assert!(
-        resumed.output.image == full.output.image,
-        "resumed image differs"
-    );
-    assert_eq!(resumed.state.history.len(), 6);
+    assert_eq!(resumed.stats.ppm.as_ref().unwrap().passes, 6);
+    assert!(resumed.image == full.image, "resumed image differs");
+    assert_eq!(history(&resumed).len(), 6);
 
-    // A state for other parameters is refused, not silently restarted.
-    let other = ppm::render_ppm(
-        &s,
-        &params,
-        PpmOptions {
-            fingerprint: "another".into(),
-            ..options(6, Some(PpmState::load(&saved[..]).unwrap()))
-        },
-        &Control::none(),
-        &mut |_| ControlFlow::Continue(()),
+    // A state of another scene is refused, not silently restarted.
+    let state = PpmState::load(&saved[..]).unwrap();
+    let other = run_with(&s, &spec, Some(state), b"another", &mut |_| {
+        ControlFlow::Continue(())
+    });
+    assert!(
+        matches!(other, Err(RenderError::Input(_))),
+        "{:?}",
+        other.err()
     );
-    assert!(matches!(other, Err(ppm::PpmError::Input(_))));
 }
 
 #[test]
 fn target_error_and_time_limit_stop_early() {
     let s = scene(CAUSTIC);
-    let params = ppm_params(4_000, 1_000);
-    let reference = run(&s, &ppm_params(4_000, 4), None).0.output.image;
-    let out = ppm::render_ppm(
-        &s,
-        &params,
-        PpmOptions {
-            stop: Stop {
-                target_error: Some(1e9),
-                ..Stop::after(1_000)
-            },
-            reference: Some(&reference),
-            ..options(1_000, None)
-        },
-        &Control::none(),
-        &mut |_| ControlFlow::Continue(()),
-    )
+    let reference = render_ppm(&s, ppm_params(4_000, 4), None).0.image;
+    let stop = |stop: Stop| {
+        RenderSpec::ppm(Progressive {
+            stop,
+            ..ppm_params(4_000, 1_000)
+        })
+    };
+    let spec = stop(Stop {
+        target_error: Some(1e9),
+        ..Stop::after(1_000)
+    });
+    let inputs = Inputs {
+        reference: Some(&reference),
+        ..Inputs::fresh()
+    };
+    let out = run(&s, &spec, inputs, &Control::none(), &mut |_| {
+        ControlFlow::Continue(())
+    })
     .unwrap();
     // Any error meets a target of 1e9: one pass, and its error recorded.
-    assert_eq!(out.state.passes, 1);
-    let report = out.output.stats.ppm.unwrap();
+    let report = out.stats.ppm.as_ref().unwrap();
+    assert_eq!(report.passes, 1);
     assert_eq!(report.stopped_by, StopReason::TargetError);
-    assert!(report.history[0].error.is_some() && out.output.stats.error.is_some());
+    assert!(report.history[0].error.is_some() && out.stats.error.is_some());
 
-    let out = ppm::render_ppm(
-        &s,
-        &params,
-        PpmOptions {
-            stop: Stop {
-                time_limit: Some(1e-9),
-                ..Stop::after(1_000)
-            },
-            ..options(1_000, None)
-        },
-        &Control::none(),
-        &mut |_| ControlFlow::Continue(()),
-    )
-    .unwrap();
-    assert_eq!(out.state.passes, 1, "at least one pass, then the limit");
-    assert_eq!(
-        out.output.stats.ppm.unwrap().stopped_by,
-        StopReason::TimeLimit
-    );
+    let spec = stop(Stop {
+        time_limit: Some(1e-9),
+        ..Stop::after(1_000)
+    });
+    let out = photonbox::render::render(&s, &spec, &Control::none()).unwrap();
+    let report = out.stats.ppm.as_ref().unwrap();
+    assert_eq!(report.passes, 1, "at least one pass, then the limit");
+    assert_eq!(report.stopped_by, StopReason::TimeLimit);
 }

@@ -5,11 +5,10 @@
 mod common;
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use photonbox::render::ppm::{self, PpmOptions, Stop};
-use photonbox::render::{Control, RenderParams};
+use photonbox::render::{Control, render};
+use photonbox::spec::{PhotonMapping, PhotonStore, Progressive, RenderSpec, Stop};
 
 struct Counting;
 
@@ -50,28 +49,25 @@ const SCENE: &str = r#"{
 /// Peak live heap bytes during a ppm render of `passes` passes, above what was live before.
 fn peak_bytes(passes: u32) -> usize {
     let scene = common::scene(SCENE);
-    let params = RenderParams {
-        photons: 50_000,
-        caustic_photons: 50_000,
-        iterations: passes,
-        // Store every hit, so that the maps (not the film) dominate the memory.
-        photon_store: photonbox::render::PhotonStore::All,
-        ..RenderParams::ppm_defaults()
-    };
-    let opts = PpmOptions::new(Stop::after(passes), String::new());
+    let params = RenderSpec::ppm(Progressive {
+        pass: PhotonMapping {
+            photons: 50_000,
+            caustic_photons: 50_000,
+            // Store every hit, so that the maps (not the film) dominate the memory.
+            photon_store: PhotonStore::All,
+            ..PhotonMapping::PPM_PASS
+        },
+        stop: Stop::after(passes),
+        ..Progressive::DEFAULT
+    });
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()
         .unwrap();
     let base = LIVE.load(Ordering::Relaxed);
     PEAK.store(base, Ordering::Relaxed);
-    let out = pool.install(|| {
-        ppm::render_ppm(&scene, &params, opts, &Control::none(), &mut |_| {
-            ControlFlow::Continue(())
-        })
-        .unwrap()
-    });
-    assert_eq!(out.state.passes, passes);
+    let out = pool.install(|| render(&scene, &params, &Control::none()).unwrap());
+    assert_eq!(out.stats.ppm.as_ref().map(|p| p.passes), Some(passes));
     PEAK.load(Ordering::Relaxed) - base
 }
 

@@ -5,7 +5,8 @@ mod common;
 
 use std::path::Path;
 
-use photonbox::render::{Control, RenderParams, Scene, render};
+use photonbox::render::{Control, Scene, render};
+use photonbox::spec::RenderSpec;
 
 fn scene_files() -> Vec<std::path::PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
@@ -28,18 +29,10 @@ fn every_scene_renders_finite_and_lit() {
     for path in files {
         let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         for integrator in ["raytrace", "photon"] {
-            let params = RenderParams {
-                integrator: if integrator == "raytrace" {
-                    photonbox::render::IntegratorKind::Raytrace
-                } else {
-                    photonbox::render::IntegratorKind::Photon
-                },
-                photons: 20_000,
-                caustic_photons: 20_000,
-                spp: 1,
+            let params = RenderSpec {
                 width: Some(32),
                 height: Some(32),
-                ..RenderParams::default()
+                ..RenderSpec::raytrace(1)
             };
             let out = render(&scene, &params, &Control::none()).unwrap();
             let px = &out.image.pixels;

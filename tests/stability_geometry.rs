@@ -11,14 +11,10 @@ use common::{
 use glam::DVec3;
 use photonbox::render::accuracy::compare;
 use photonbox::render::photon::PhotonStore;
-use photonbox::render::{IntegratorKind, RenderParams};
+use photonbox::spec::{PhotonMapping, RenderSpec};
 
-fn raytrace(spp: u32) -> RenderParams {
-    RenderParams {
-        integrator: IntegratorKind::Raytrace,
-        spp,
-        ..RenderParams::default()
-    }
+fn raytrace(spp: u32) -> RenderSpec {
+    RenderSpec::raytrace(spp)
 }
 
 /// A floor of albedo 0.5 under a point light, seen from `camera` looking at `look_at`.
@@ -152,14 +148,16 @@ fn images_do_not_depend_on_scale_or_position() {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json");
     let json = std::fs::read_to_string(path).unwrap();
-    let params = RenderParams {
-        photons: 100_000,
-        caustic_photons: 100_000,
-        gather_rays: 0,
-        spp: 2,
+    let params = RenderSpec {
         width: Some(64),
         height: Some(64),
-        ..RenderParams::default()
+        ..RenderSpec::photon(PhotonMapping {
+            photons: 100_000,
+            caustic_photons: 100_000,
+            gather_rays: 0,
+            spp: 2,
+            ..PhotonMapping::PHOTON
+        })
     };
     let original = render_image(&scene(&json), &params);
     let base = original.mean_rgb(0, 0, 64, 64);
@@ -204,13 +202,13 @@ fn coincident_faces_do_not_shadow_each_other() {
     // Both materials have the red albedo 0.5: the red channel is the analytic answer.
     let got = render_image(&s, &raytrace(256));
     check_against("coincident faces", &got, &want, 0.01, 0.0, 0.002);
-    let photons = RenderParams {
+    let photons = RenderSpec::photon(PhotonMapping {
         photon_store: PhotonStore::DirectOnly,
         photons: 400_000,
         k: 50,
         spp: 1,
-        ..RenderParams::default()
-    };
+        ..PhotonMapping::PHOTON
+    });
     let got = render_image(&s, &photons);
     let mean = |v: &mut dyn Iterator<Item = f64>| {
         let (sum, n) = v.fold((0.0, 0), |(s, n), x| (s + x, n + 1));

@@ -8,8 +8,8 @@ use std::ops::ControlFlow;
 
 use photonbox::render::math::Rgb;
 use photonbox::render::photon::sum_power;
-use photonbox::render::ppm::{self, PpmOptions, Stop};
-use photonbox::render::{Control, RenderParams};
+use photonbox::render::{Control, Inputs, run};
+use photonbox::spec::{PhotonMapping, Progressive, RenderSpec, Stop};
 
 /// 1e8 photon powers of seven distinct values: the exact total is seven products.
 #[test]
@@ -52,31 +52,32 @@ fn ppm_after_100k_passes_stays_finite_and_right() {
     }"#,
     );
     let passes = 100_000;
-    let params = RenderParams {
-        photons: 100,
-        caustic_photons: 0,
-        photon_store: photonbox::render::PhotonStore::All,
-        iterations: passes,
+    let params = RenderSpec::ppm(Progressive {
+        pass: PhotonMapping {
+            photons: 100,
+            caustic_photons: 0,
+            photon_store: photonbox::render::PhotonStore::All,
+            ..PhotonMapping::PPM_PASS
+        },
         alpha: 0.5,
         radius: Some(0.3),
-        ..RenderParams::ppm_defaults()
-    };
+        stop: Stop::after(passes),
+    });
     let t0 = std::time::Instant::now();
-    let out = ppm::render_ppm(
-        &s,
-        &params,
-        PpmOptions::new(Stop::after(passes), String::new()),
-        &Control::none(),
-        &mut |_| ControlFlow::Continue(()),
-    )
+    // The state after the last pass (the radius of the next pass, the passes done).
+    let mut last = (0.0, 0);
+    let out = run(&s, &params, Inputs::fresh(), &Control::none(), &mut |st| {
+        last = (st.r2_global, st.passes);
+        ControlFlow::Continue(())
+    })
     .unwrap();
-    let report = out.output.stats.ppm.clone().unwrap();
-    let img = &out.output.image;
+    let report = out.stats.ppm.clone().unwrap();
+    let img = &out.image;
     common::assert_all_finite(img);
     let want = 0.5 / std::f64::consts::PI * 100.0 / (4.0 * std::f64::consts::PI);
     let mean = img.mean_rgb(0, 0, 2, 2)[0];
     let r0 = report.radius_initial_global;
-    let r2 = out.state.r2_global;
+    let (r2, done) = last;
     // The state holds the radius of the next pass: r_{N+1}^2 / r_1^2 = prod_{i<=N} (i +
     // alpha) / (i + 1).
     let shrink: f64 = (1..=passes)
@@ -84,11 +85,11 @@ fn ppm_after_100k_passes_stays_finite_and_right() {
         .product();
     eprintln!(
         "{} passes in {:.1} s: mean {mean:.5} against {want:.5}; radius {r0} -> {}",
-        out.state.passes,
+        done,
         t0.elapsed().as_secs_f64(),
         r2.sqrt()
     );
-    assert_eq!(out.state.passes, passes);
+    assert_eq!((done, report.passes), (passes, passes));
     assert!(r2 > 0.0 && r2.is_finite());
     assert!(
         (r2 / (r0 * r0) / shrink - 1.0).abs() < 1e-9,

@@ -11,10 +11,11 @@ use common::{
     scene,
 };
 use glam::DVec3;
+use photonbox::render::Scene;
 use photonbox::render::accuracy::compare;
 use photonbox::render::output::read_exr;
 use photonbox::render::photon::PhotonStore;
-use photonbox::render::{IntegratorKind, RenderParams, Scene};
+use photonbox::spec::{PhotonMapping, RenderSpec};
 
 fn repo(rel: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
@@ -26,11 +27,13 @@ fn repo(rel: &str) -> std::path::PathBuf {
 #[test]
 fn diffuse_sphere_inside_glass_matches_the_independent_renderer() {
     let s = Scene::load(&repo("scenes/twins/glass_orange_twin.json")).unwrap();
-    let params = RenderParams {
+    let params = RenderSpec {
         width: Some(32),
         height: Some(32),
-        spp: 64,
-        ..RenderParams::default()
+        ..RenderSpec::photon(PhotonMapping {
+            spp: 64,
+            ..PhotonMapping::PHOTON
+        })
     };
     let mut got = render_image(&s, &params);
     let mut reference = read_exr(&repo("tests/data/glass_orange_twin.ref32.exr")).unwrap();
@@ -81,11 +84,9 @@ fn camera_inside_glass_sees_snells_window_and_total_internal_reflection() {
             None
         }
     });
-    let params = RenderParams {
-        integrator: IntegratorKind::Raytrace,
-        spp: 64,
+    let params = RenderSpec {
         max_depth: 64,
-        ..RenderParams::default()
+        ..RenderSpec::raytrace(64)
     };
     let got = render_image(&s, &params);
     let inside: Vec<Option<f64>> = want.iter().map(|w| w.filter(|&v| v > 0.0)).collect();
@@ -129,14 +130,14 @@ fn light_inside_a_glass_sphere_lights_the_floor_as_a_bare_light() {
         let x = o + d * (-o.y / d.y);
         Some(point_lit(x, DVec3::Y, light, 100.0, 0.5))
     });
-    let params = RenderParams {
+    let params = RenderSpec::photon(PhotonMapping {
         photons: 10_000,
         caustic_photons: 2_000_000,
         k: 100,
         gather_rays: 0,
         spp: 1,
-        ..RenderParams::default()
-    };
+        ..PhotonMapping::PHOTON
+    });
     let out = render_checked(&s, &params);
     // One estimate per pixel from k = 100 photons (10% noise): the mean carries the check.
     check_against("light in glass", &out.image, &want, 0.6, 0.0, 0.01);
@@ -154,15 +155,17 @@ fn glass_of_index_1_vanishes() {
     let objects = without["objects"].as_array_mut().unwrap();
     objects.retain(|o| o["material"] != "glass");
     assert_eq!(objects.len() + 1, with["objects"].as_array().unwrap().len());
-    let params = RenderParams {
-        photons: 200_000,
-        caustic_photons: 400_000,
-        k: 50,
-        gather_rays: 0,
-        spp: 4,
+    let params = RenderSpec {
         width: Some(48),
         height: Some(48),
-        ..RenderParams::default()
+        ..RenderSpec::photon(PhotonMapping {
+            photons: 200_000,
+            caustic_photons: 400_000,
+            k: 50,
+            gather_rays: 0,
+            spp: 4,
+            ..PhotonMapping::PHOTON
+        })
     };
     let a = render_image(&scene(&with.to_string()), &params);
     let b = render_image(&scene(&without.to_string()), &params);
@@ -192,14 +195,16 @@ fn closed_sphere(albedo: f64, radius: f64, power: f64) -> Scene {
 fn albedo_one_in_a_closed_sphere_is_bounded_by_max_depth() {
     let (radius, power, depth) = (2.0, 10.0, 6u32);
     let s = closed_sphere(1.0, radius, power);
-    let params = RenderParams {
-        photon_store: PhotonStore::All,
-        photons: 100_000,
-        k: 200,
-        gather_rays: 0,
-        spp: 1,
+    let params = RenderSpec {
         max_depth: depth,
-        ..RenderParams::default()
+        ..RenderSpec::photon(PhotonMapping {
+            photon_store: PhotonStore::All,
+            photons: 100_000,
+            k: 200,
+            gather_rays: 0,
+            spp: 1,
+            ..PhotonMapping::PHOTON
+        })
     };
     let out = render_checked(&s, &params);
     let stored = out.stats.photons.global_stored;
@@ -220,13 +225,13 @@ fn albedo_one_in_a_closed_sphere_is_bounded_by_max_depth() {
 fn k_larger_than_the_photons_stored() {
     let (a, radius, power) = (0.5, 2.0, 10.0);
     let s = closed_sphere(a, radius, power);
-    let params = RenderParams {
+    let params = RenderSpec::photon(PhotonMapping {
         photons: 2_000,
         k: 50_000,
         gather_rays: 0,
         spp: 1,
-        ..RenderParams::default()
-    };
+        ..PhotonMapping::PHOTON
+    });
     let out = render_checked(&s, &params);
     assert!(out.stats.photons.global_stored < 50_000);
     let want = (a / PI) * power / (4.0 * PI * radius * radius) / (1.0 - a);
@@ -250,13 +255,13 @@ fn no_photon_stored() {
                     "edge_v": [1, 0, 0], "radiance": [5, 5, 5]}]
     }"#,
     );
-    let params = RenderParams {
+    let params = RenderSpec::photon(PhotonMapping {
         photons: 10_000,
         caustic_photons: 10_000,
         k: 20,
         spp: 1,
-        ..RenderParams::default()
-    };
+        ..PhotonMapping::PHOTON
+    });
     let out = render_checked(&s, &params);
     assert!(out.stats.photons.global_emitted > 0);
     assert_eq!(out.stats.photons.global_stored, 0);

@@ -7,8 +7,8 @@
 mod common;
 
 use common::{rel, render_image, scene};
-use photonbox::render::RenderParams;
 use photonbox::render::photon::PhotonStore;
+use photonbox::spec::{PhotonMapping, RenderSpec};
 
 /// A box with a glossy Phong floor, a mirror sphere and a glass sphere, lit by a quad light
 /// whose reflection in the mirror falls on the floor's glossy lobe.
@@ -39,15 +39,15 @@ const SCENE: &str = r#"{
 fn photon_modes_agree_on_the_image_mean() {
     let s = scene(SCENE);
     let mean = |store, gather_rays| {
-        let params = RenderParams {
+        let params = RenderSpec::photon(PhotonMapping {
             photons: 400_000,
             caustic_photons: 400_000,
             k: 100,
             photon_store: store,
             gather_rays,
             spp: 16,
-            ..RenderParams::default()
-        };
+            ..PhotonMapping::PHOTON
+        });
         let m = render_image(&s, &params).mean_rgb(0, 0, 40, 40);
         (m[0] + m[1] + m[2]) / 3.0
     };
@@ -92,14 +92,14 @@ fn a_light_seen_through_a_mirror_in_a_glossy_surface() {
     }"#,
     );
     let mean = |store| {
-        let params = RenderParams {
+        let params = RenderSpec::photon(PhotonMapping {
             photon_store: store,
             gather_rays: 0,
             spp: 1024,
             photons: 100_000,
             caustic_photons: 100_000,
-            ..RenderParams::default()
-        };
+            ..PhotonMapping::PHOTON
+        });
         // The floor: the lower half of the image.
         render_image(&s, &params).mean_rgb(0, 16, 32, 32)[1]
     };

@@ -11,10 +11,11 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Parser;
+use std::sync::Arc;
+
 use photonbox::render::photon::{PhotonParams, PhotonStore, build_photon_maps};
-use photonbox::render::{
-    Control, EffectSwitches, RenderParams, Scene, ppm, render_with_maps, trace_maps,
-};
+use photonbox::render::{Control, Inputs, Prebuilt, Scene, ppm, render, run, trace_maps};
+use photonbox::spec::{EffectSwitches, PhotonMapping, Progressive, RenderSpec, Stop};
 
 #[derive(Parser)]
 struct Args {
@@ -67,28 +68,37 @@ struct Row {
 }
 
 fn measure(scene: &Scene, n: u64, k: usize, runs: usize) -> Row {
-    let params = RenderParams {
-        photons: n,
-        caustic_photons: n,
-        k,
-        spp: 1,
-        gather_rays: 0,
+    let spec = RenderSpec {
         width: Some(512),
         height: Some(512),
-        // The seed's workload: caustic photons emitted in every direction.
-        aim_caustics: false,
-        ..RenderParams::default()
+        ..RenderSpec::photon(PhotonMapping {
+            photons: n,
+            caustic_photons: n,
+            k,
+            spp: 1,
+            gather_rays: 0,
+            // The seed's workload: caustic photons emitted in every direction.
+            aim_caustics: false,
+            ..PhotonMapping::PHOTON
+        })
     };
     let (mut tracing, mut trace, mut build, mut pre, mut cam) =
         (vec![], vec![], vec![], vec![], vec![]);
     let mut stored = (0, 0);
     for _ in 0..runs {
         let t0 = Instant::now();
-        let maps = trace_maps(scene, &params, &Control::none()).expect("not cancelled");
+        let maps = trace_maps(scene, &spec, &Control::none()).expect("not cancelled");
         tracing.push(t0.elapsed().as_secs_f64());
-        let out = render_with_maps(scene, &maps, &params, &Control::none()).expect("not cancelled");
-        trace.push(out.stats.times.photon_trace);
-        build.push(out.stats.times.build_maps);
+        trace.push(maps.trace_seconds);
+        build.push(maps.build_seconds);
+        let inputs = Inputs {
+            maps: &Prebuilt(Arc::new(maps)),
+            ..Inputs::fresh()
+        };
+        let out = run(scene, &spec, inputs, &Control::none(), &mut |_| {
+            std::ops::ControlFlow::Continue(())
+        })
+        .expect("renders");
         pre.push(out.stats.times.precompute);
         cam.push(out.stats.times.render);
         stored = (
@@ -182,7 +192,7 @@ fn main() {
             global_photons: global,
             caustic_photons: caustic,
             store: PhotonStore::Indirect,
-            max_depth: RenderParams::default().max_depth,
+            max_depth: RenderSpec::photon(PhotonMapping::PHOTON).max_depth,
             seed: 1,
             aim_caustics: aim,
             dark_lights: vec![],
@@ -233,32 +243,40 @@ fn host_cpu() -> String {
 /// 100k global + 100k caustic photons each, 512x512, 1 spp, automatic radius (ppm's k),
 /// caustic photons emitted blindly or aimed at the specular objects.
 fn ppm_pass(scene: &Scene, runs: usize, aim_caustics: bool) {
-    let params = RenderParams {
+    let pass = PhotonMapping {
         photons: 100_000,
         caustic_photons: 100_000,
-        iterations: runs as u32,
+        aim_caustics,
+        ..PhotonMapping::PPM_PASS
+    };
+    let k = pass.k;
+    let spec = RenderSpec {
         width: Some(512),
         height: Some(512),
-        aim_caustics,
-        ..RenderParams::ppm_defaults()
+        ..RenderSpec::ppm(Progressive {
+            pass,
+            stop: Stop::after(runs as u32),
+            ..Progressive::DEFAULT
+        })
     };
-    let opts = ppm::PpmOptions::new(ppm::Stop::after(params.iterations), String::new());
-    let out = ppm::render_ppm(scene, &params, opts, &Control::none(), &mut |_| {
-        std::ops::ControlFlow::Continue(())
-    })
-    .expect("not cancelled");
-    let h = &out.state.history;
-    let pass = |f: fn(&ppm::PassStats) -> f64| median(h.iter().map(f).collect());
+    let out = render(scene, &spec, &Control::none()).expect("renders");
+    let h = &out
+        .stats
+        .ppm
+        .as_ref()
+        .expect("a ppm render reports its passes")
+        .history;
+    let median_of = |f: fn(&ppm::PassStats) -> f64| median(h.iter().map(f).collect());
     println!(
         "\n- ppm pass, 100k + 100k photons ({} caustics), 512x512, 1 spp, k = {} (auto radius): \
          median {:.1} ms (trace {:.1} + build {:.1} + camera {:.1}) over {} passes; first pass \
          {:.1} ms",
         if aim_caustics { "aimed" } else { "blind" },
-        params.k,
-        pass(|p| p.photon_trace + p.build_maps + p.render) * 1e3,
-        pass(|p| p.photon_trace) * 1e3,
-        pass(|p| p.build_maps) * 1e3,
-        pass(|p| p.render) * 1e3,
+        k,
+        median_of(|p| p.photon_trace + p.build_maps + p.render) * 1e3,
+        median_of(|p| p.photon_trace) * 1e3,
+        median_of(|p| p.build_maps) * 1e3,
+        median_of(|p| p.render) * 1e3,
         h.len(),
         (h[0].photon_trace + h[0].build_maps + h[0].render) * 1e3,
     );
@@ -270,20 +288,20 @@ fn ppm_pass(scene: &Scene, runs: usize, aim_caustics: bool) {
 fn effects_cost(runs: usize) {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_spheres.json");
     let scene = Scene::load(&path).expect("scenes/cornell_spheres.json loads");
-    let on = RenderParams::default();
-    let off = RenderParams {
+    let on = RenderSpec::photon(PhotonMapping::PHOTON);
+    let off = RenderSpec {
         effects: EffectSwitches {
             caustics: false,
             ..EffectSwitches::ALL_ON
         },
-        ..RenderParams::default()
+        ..on.clone()
     };
     let (mut t_on, mut t_off) = (vec![], vec![]);
     let mut caustic_emitted = 0;
     for _ in 0..runs {
         for (params, times) in [(&on, &mut t_on), (&off, &mut t_off)] {
             let t0 = Instant::now();
-            let out = photonbox::render::render(&scene, params, &Control::none()).unwrap();
+            let out = render(&scene, params, &Control::none()).unwrap();
             times.push(t0.elapsed().as_secs_f64());
             caustic_emitted += out.stats.photons.caustic_emitted;
         }

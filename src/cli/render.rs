@@ -1,94 +1,20 @@
-//! `photonbox render`: one scene to PNG/EXR/STATS.json, with `photon`, `raytrace` or
-//! progressive `ppm` (checkpointed and resumable), and errors against a reference.
+//! `photonbox render`: one scene to PNG/EXR/STATS.json as the spec's flags say (a
+//! progressive render checkpointed and resumable), with errors against a reference.
 
 use std::io::IsTerminal;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use clap::{Args, ValueEnum};
+use clap::Args;
 
 use crate::{bad, progress};
 use photonbox::render::accuracy::ImageError;
-use photonbox::render::ppm::{self, PpmOptions, PpmState, StateError, Stop};
+use photonbox::render::ppm::{PpmState, StateError};
 use photonbox::render::{
-    self, Control, EffectSwitches, Image, IntegratorKind, PhotonStore, RenderOutput, RenderParams,
-    Scene, output,
+    self, Control, Image, Inputs, RenderError, RenderOutput, Scene, TraceNow, output,
 };
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum IntegratorArg {
-    Raytrace,
-    Photon,
-    Ppm,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum StoreArg {
-    Indirect,
-    All,
-    #[value(name = "direct_only")]
-    DirectOnly,
-}
-
-/// What shapes the image: shared by `render` and `sweep`.
-#[derive(Args, Clone, Debug)]
-pub struct ParamArgs {
-    /// Image width (default: the scene camera's).
-    #[arg(long)]
-    pub width: Option<u32>,
-    /// Image height (default: the scene camera's).
-    #[arg(long)]
-    pub height: Option<u32>,
-    #[arg(long, value_enum, default_value = "photon")]
-    pub integrator: IntegratorArg,
-    /// Photons emitted for the global map [default: 200000; ppm: 100000 per pass].
-    #[arg(long)]
-    pub photons: Option<u64>,
-    /// Photons emitted for the caustic map [default: 200000; ppm: 100000 per pass].
-    #[arg(long)]
-    pub caustic_photons: Option<u64>,
-    /// Photons per radiance estimate; ppm: sets the automatic initial radius [default: 50;
-    /// ppm: 10].
-    #[arg(long)]
-    pub k: Option<usize>,
-    /// Which photons the global map keeps.
-    #[arg(long, value_enum, default_value = "indirect")]
-    pub photon_store: StoreArg,
-    /// Final-gather rays per camera sample, 0 reads the global map [default: 8; ppm: 0].
-    #[arg(long)]
-    pub gather_rays: Option<u32>,
-    /// Jittered samples per pixel (ppm: per pass) [default: 4; ppm: 1].
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Longest path, in surface interactions.
-    #[arg(long, default_value_t = RenderParams::default().max_depth)]
-    pub max_depth: u32,
-    #[arg(long, default_value_t = RenderParams::default().seed)]
-    pub seed: u64,
-    /// ppm: passes [default: 16].
-    #[arg(long)]
-    pub iterations: Option<u32>,
-    /// ppm: radius reduction per pass, in (0, 1).
-    #[arg(long, default_value_t = RenderParams::default().alpha)]
-    pub alpha: f64,
-    /// ppm: initial radius in scene units [default: median k-NN distance in pass 1].
-    #[arg(long)]
-    pub radius: Option<f32>,
-    /// Emit caustic photons in every direction (as the seed did) instead of aiming them at
-    /// the mirror and glass objects.
-    #[arg(long)]
-    pub blind_caustics: bool,
-    /// Leave out direct light at what the camera sees (to see the other effects alone).
-    #[arg(long)]
-    pub no_direct_light: bool,
-    /// Leave out caustics: no caustic photons are traced.
-    #[arg(long)]
-    pub no_caustics: bool,
-    /// Leave out light from other diffuse surfaces (no global-map reads, no gathering).
-    #[arg(long, alias = "no-indirect")]
-    pub no_diffuse_interreflection: bool,
-}
+use photonbox::spec::{RenderSpec, SpecForm, progressive_names};
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -104,7 +30,7 @@ pub struct RenderArgs {
     #[arg(long)]
     stats: Option<PathBuf>,
     #[command(flatten)]
-    params: ParamArgs,
+    spec: SpecForm,
     /// PNG exposure in stops.
     #[arg(long, default_value_t = 0.0)]
     exposure: f32,
@@ -114,90 +40,34 @@ pub struct RenderArgs {
     /// Linear EXR reference: print and record relmse, block_err, mean_ratio (ppm: per pass).
     #[arg(long)]
     reference: Option<PathBuf>,
-    /// ppm: stop before a pass that would end after this many seconds (passes only).
-    #[arg(long)]
-    time_limit: Option<f64>,
-    /// ppm: stop once relmse against --reference is at most this.
-    #[arg(long, requires = "reference")]
-    target_error: Option<f64>,
-    /// ppm: save the running state here after every pass (and the image to -o/--exr).
+    /// A progressive render: save the running state here after every pass (and the image
+    /// to -o/--exr).
     #[arg(long)]
     checkpoint: Option<PathBuf>,
-    /// ppm: continue from a state saved by --checkpoint (same scene and parameters).
+    /// A progressive render: continue from a state saved by --checkpoint (same scene and
+    /// parameters).
     #[arg(long)]
     resume: Option<PathBuf>,
 }
 
-/// Render parameters from the flags, with the integrator's defaults, validated.
-pub fn params_from_args(a: &ParamArgs) -> anyhow::Result<RenderParams> {
-    let integrator = match a.integrator {
-        IntegratorArg::Raytrace => IntegratorKind::Raytrace,
-        IntegratorArg::Photon => IntegratorKind::Photon,
-        IntegratorArg::Ppm => IntegratorKind::Ppm,
-    };
-    let d = if integrator == IntegratorKind::Ppm {
-        RenderParams::ppm_defaults()
-    } else {
-        RenderParams::default()
-    };
-    let photon_store = match a.photon_store {
-        StoreArg::Indirect => PhotonStore::Indirect,
-        StoreArg::All => PhotonStore::All,
-        StoreArg::DirectOnly => PhotonStore::DirectOnly,
-    };
-    let params = RenderParams {
-        integrator,
-        photons: a.photons.unwrap_or(d.photons),
-        caustic_photons: a.caustic_photons.unwrap_or(d.caustic_photons),
-        k: a.k.unwrap_or(d.k),
-        photon_store,
-        gather_rays: a.gather_rays.unwrap_or(d.gather_rays),
-        spp: a.spp.unwrap_or(d.spp),
-        max_depth: a.max_depth,
-        seed: a.seed,
-        width: a.width,
-        height: a.height,
-        iterations: a.iterations.unwrap_or(d.iterations),
-        alpha: a.alpha,
-        radius: a.radius,
-        aim_caustics: !a.blind_caustics,
-        effects: EffectSwitches {
-            direct_light: !a.no_direct_light,
-            caustics: !a.no_caustics,
-            diffuse_interreflection: !a.no_diffuse_interreflection,
-        },
-    };
-    params
-        .validate()
-        .map_err(|e| bad(format!("--{} {}", e.field.replace('_', "-"), e.message)))?;
-    Ok(params)
+/// The spec the flags describe, with the integrator's defaults, validated (an error names
+/// its flag). `has_reference`: a reference comes with the render.
+pub fn spec_from_flags(form: &SpecForm, has_reference: bool) -> anyhow::Result<RenderSpec> {
+    form.to_spec(has_reference).map_err(|e| bad(e.as_flag()))
 }
 
-/// Flags that only `ppm` reads: an error elsewhere, rather than silently ignored.
-fn check_ppm_only(a: &RenderArgs, ppm: bool) -> anyhow::Result<()> {
+/// Checkpoints are for progressive renders only: an error elsewhere, rather than ignored.
+fn check_progressive_only(a: &RenderArgs, spec: &RenderSpec) -> anyhow::Result<()> {
     for (flag, set) in [
-        ("--time-limit", a.time_limit.is_some()),
-        ("--target-error", a.target_error.is_some()),
         ("--checkpoint", a.checkpoint.is_some()),
         ("--resume", a.resume.is_some()),
     ] {
-        if set && !ppm {
-            return Err(bad(format!("{flag} is only for --integrator ppm")));
+        if set && !spec.is_progressive() {
+            return Err(bad(format!(
+                "{flag} is only for a progressive integrator ({})",
+                progressive_names()
+            )));
         }
-    }
-    if let Some(t) = a.time_limit
-        && !(t > 0.0 && t.is_finite())
-    {
-        return Err(bad(format!(
-            "--time-limit must be a positive number of seconds, got {t}"
-        )));
-    }
-    if let Some(e) = a.target_error
-        && !(e > 0.0 && e.is_finite())
-    {
-        return Err(bad(format!(
-            "--target-error must be a positive number, got {e}"
-        )));
     }
     Ok(())
 }
@@ -207,38 +77,20 @@ pub fn read_reference(path: &Path) -> anyhow::Result<Image> {
 }
 
 pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
-    let params = params_from_args(&a.params)?;
-    let is_ppm = params.integrator == IntegratorKind::Ppm;
-    check_ppm_only(&a, is_ppm)?;
-    if !a.exposure.is_finite() {
-        return Err(bad("--exposure must be a finite number"));
-    }
+    // The exposure is checked with the spec's other numbers.
+    let form = SpecForm {
+        exposure: Some(a.exposure),
+        ..a.spec.clone()
+    };
+    let spec = spec_from_flags(&form, a.reference.is_some())?;
+    check_progressive_only(&a, &spec)?;
     if a.threads == Some(0) {
         return Err(bad("--threads must be at least 1"));
     }
     let (scene, source) = Scene::load_with_source(&a.scene)
         .map_err(|e| bad(format!("{}: {e}", a.scene.display())))?;
     let reference = a.reference.as_deref().map(read_reference).transpose()?;
-    let resume = match &a.resume {
-        Some(p) => {
-            let f = std::fs::File::open(p)
-                .map_err(|e| bad(format!("--resume {}: {e}", p.display())))?;
-            match PpmState::load(std::io::BufReader::new(f)) {
-                Ok(state) => Some(state),
-                // A damaged state cannot be resumed, but the render it was for can still
-                // be made: from the start, and saying so.
-                Err(e @ StateError::Corrupt { .. }) => {
-                    eprintln!(
-                        "photonbox: warning: --resume {}: {e}; starting again from pass 0",
-                        p.display()
-                    );
-                    None
-                }
-                Err(e) => return Err(bad(format!("--resume {}: {e}", p.display()))),
-            }
-        }
-        None => None,
-    };
+    let resume = read_resume(a.resume.as_deref())?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
         .build()
@@ -254,41 +106,27 @@ pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
         cancel: None,
         progress: Some(&callback),
     };
-    let out = if is_ppm {
-        let stop = Stop {
-            time_limit: a.time_limit,
-            target_error: a.target_error,
-            ..Stop::after(params.iterations)
-        };
-        let opts = PpmOptions {
-            reference: reference.as_ref(),
-            resume,
-            ..PpmOptions::new(stop, ppm::fingerprint(source.as_bytes(), &params))
-        };
-        let mut on_pass = |state: &PpmState| {
-            if let Err(e) = checkpoint(&a, state) {
-                eprintln!("photonbox: warning: checkpoint: {e:#}");
-            }
-            if let (false, Some(h)) = (terminal, &state.last)
-                && let Some(e) = h.error
-            {
-                eprintln!("pass {}: {:.2}s {}", h.pass, h.elapsed, describe(&e));
-            }
-            ControlFlow::Continue(())
-        };
-        let r = pool.install(|| ppm::render_ppm(&scene, &params, opts, &control, &mut on_pass));
-        match r {
-            Ok(o) => o.output,
-            Err(ppm::PpmError::Input(msg)) => return Err(bad(msg)),
-            Err(e) => return Err(anyhow::Error::new(e).context("render")),
+    let inputs = Inputs {
+        maps: &TraceNow,
+        reference: reference.as_ref(),
+        resume,
+        scene_key: source.as_bytes(),
+    };
+    let mut on_pass = |state: &PpmState| {
+        if let Err(e) = checkpoint(&a, state) {
+            eprintln!("photonbox: warning: checkpoint: {e:#}");
         }
-    } else {
-        let mut out = pool
-            .install(|| render::render(&scene, &params, &control))
-            .context("render")?;
-        out.measure(reference.as_ref())
-            .map_err(|e| bad(format!("--reference: {e}")))?;
-        out
+        if let (false, Some(h)) = (terminal, &state.last)
+            && let Some(e) = h.error
+        {
+            eprintln!("pass {}: {:.2}s {}", h.pass, h.elapsed, describe(&e));
+        }
+        ControlFlow::Continue(())
+    };
+    let out = match pool.install(|| render::run(&scene, &spec, inputs, &control, &mut on_pass)) {
+        Ok(out) => out,
+        Err(e @ (RenderError::Input(_) | RenderError::Spec(_))) => return Err(bad(e.to_string())),
+        Err(e) => return Err(anyhow::Error::new(e).context("render")),
     };
     if let Some(b) = &bars {
         b.clear();
@@ -312,6 +150,24 @@ pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The state `--resume` names. A damaged state cannot be resumed, but the render it was for
+/// can still be made: from the start, and saying so.
+fn read_resume(path: Option<&Path>) -> anyhow::Result<Option<PpmState>> {
+    let Some(p) = path else { return Ok(None) };
+    let f = std::fs::File::open(p).map_err(|e| bad(format!("--resume {}: {e}", p.display())))?;
+    match PpmState::load(std::io::BufReader::new(f)) {
+        Ok(state) => Ok(Some(state)),
+        Err(e @ StateError::Corrupt { .. }) => {
+            eprintln!(
+                "photonbox: warning: --resume {}: {e}; starting again from pass 0",
+                p.display()
+            );
+            Ok(None)
+        }
+        Err(e) => Err(bad(format!("--resume {}: {e}", p.display()))),
+    }
 }
 
 /// One line of errors against the reference.

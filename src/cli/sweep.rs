@@ -10,12 +10,13 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::Args;
 
-use super::render::{IntegratorArg, ParamArgs, StoreArg, params_from_args, read_reference};
+use serde_json::Value;
+
+use super::render::{read_reference, spec_from_flags};
 use super::sweep_output::{Row, describe_choice, write_plots, write_results};
 use crate::bad;
-use photonbox::render::accuracy::compare;
-use photonbox::render::ppm::{self, PpmOptions, Stop};
-use photonbox::render::{self, Control, Image, IntegratorKind, Scene, output};
+use photonbox::render::{self, Control, Image, Inputs, RenderError, Scene, output};
+use photonbox::spec::{REFERENCE_INTEGRATOR, SpecForm};
 
 #[derive(Args)]
 pub struct SweepArgs {
@@ -34,12 +35,10 @@ pub struct SweepArgs {
     /// photons and caustic_photons together).
     #[arg(long, num_args = 1.., required = true)]
     grid: Vec<String>,
-    /// ppm: stop each render's passes at this many seconds.
-    #[arg(long)]
-    time_limit: Option<f64>,
-    /// Parameters every render shares (the grid overrides them).
+    /// Parameters every render shares (the grid overrides them; a render whose integrator
+    /// does not read one, e.g. `--iterations` for `photon`, goes without it).
     #[command(flatten)]
-    params: ParamArgs,
+    spec: SpecForm,
 }
 
 /// One grid axis: a parameter and its values, as written.
@@ -48,32 +47,29 @@ pub struct Axis {
     pub values: Vec<String>,
 }
 
-const AXES: &[&str] = &[
-    "n",
-    "integrator",
-    "photons",
-    "caustic_photons",
-    "k",
-    "photon_store",
-    "gather_rays",
-    "spp",
-    "max_depth",
-    "iterations",
-    "alpha",
-    "radius",
-];
+/// Grid names that are not a field of the spec's form.
+const ALIASES: &[(&str, &[&str])] = &[("n", &["photons", "caustic_photons"])];
+
+/// Fields of the form the grid does not vary: they are not render parameters, or not one
+/// value.
+const NOT_AXES: &[&str] = &["version", "effects", "exposure", "reference_job"];
 
 fn parse_grid(grid: &[String]) -> anyhow::Result<Vec<Axis>> {
+    let fields = form_fields();
     let mut axes: Vec<Axis> = Vec::new();
     for g in grid {
         let (name, values) = g
             .split_once('=')
             .ok_or_else(|| bad(format!("--grid {g}: expected NAME=V1,V2,...")))?;
         let name = name.trim().replace('-', "_");
-        if !AXES.contains(&name.as_str()) {
+        let known = fields.contains(&name) || ALIASES.iter().any(|(a, _)| *a == name);
+        if !known || NOT_AXES.contains(&name.as_str()) {
+            let mut names: Vec<&str> = ALIASES.iter().map(|(a, _)| *a).collect();
+            names.extend(fields.iter().map(String::as_str));
+            names.retain(|n| !NOT_AXES.contains(n));
             return Err(bad(format!(
                 "--grid {g}: unknown parameter {name:?} (one of {})",
-                AXES.join(", ")
+                names.join(", ")
             )));
         }
         if axes.iter().any(|a| a.name == name) {
@@ -88,53 +84,34 @@ fn parse_grid(grid: &[String]) -> anyhow::Result<Vec<Axis>> {
     Ok(axes)
 }
 
-/// `base` with one parameter set from its text.
-fn set(base: &mut ParamArgs, name: &str, v: &str) -> anyhow::Result<()> {
-    fn num<T: std::str::FromStr>(name: &str, v: &str) -> anyhow::Result<T> {
-        v.parse()
-            .map_err(|_| bad(format!("--grid {name}={v}: not a valid number")))
+/// The names of the form's fields, as its schema lists them.
+fn form_fields() -> Vec<String> {
+    use utoipa::openapi::{RefOr, schema::Schema};
+    match <SpecForm as utoipa::PartialSchema>::schema() {
+        RefOr::T(Schema::Object(o)) => o.properties.keys().cloned().collect(),
+        _ => Vec::new(),
     }
-    match name {
-        "integrator" => {
-            base.integrator = match v {
-                "raytrace" => IntegratorArg::Raytrace,
-                "photon" => IntegratorArg::Photon,
-                "ppm" => IntegratorArg::Ppm,
-                _ => {
-                    return Err(bad(format!(
-                        "--grid integrator={v}: expected raytrace, photon or ppm"
-                    )));
-                }
-            }
-        }
-        "photon_store" => {
-            base.photon_store = match v {
-                "indirect" => StoreArg::Indirect,
-                "all" => StoreArg::All,
-                "direct_only" => StoreArg::DirectOnly,
-                _ => {
-                    return Err(bad(format!(
-                        "--grid photon_store={v}: expected indirect, all or direct_only"
-                    )));
-                }
-            }
-        }
-        "n" => {
-            let n = num(name, v)?;
-            (base.photons, base.caustic_photons) = (Some(n), Some(n));
-        }
-        "photons" => base.photons = Some(num(name, v)?),
-        "caustic_photons" => base.caustic_photons = Some(num(name, v)?),
-        "k" => base.k = Some(num(name, v)?),
-        "gather_rays" => base.gather_rays = Some(num(name, v)?),
-        "spp" => base.spp = Some(num(name, v)?),
-        "max_depth" => base.max_depth = num(name, v)?,
-        "iterations" => base.iterations = Some(num(name, v)?),
-        "alpha" => base.alpha = num(name, v)?,
-        "radius" => base.radius = Some(num(name, v)?),
-        _ => unreachable!("checked by parse_grid"),
+}
+
+/// `base` with one parameter set from its text (a number where it reads as one, else a
+/// name), through the form's own deserializer: its names, types and errors.
+fn set(base: &SpecForm, name: &str, v: &str) -> anyhow::Result<SpecForm> {
+    let value: Value = serde_json::from_str(v).unwrap_or_else(|_| Value::String(v.into()));
+    let mut form = serde_json::to_value(base)?;
+    let fields = ALIASES
+        .iter()
+        .find(|(a, _)| *a == name)
+        .map_or(vec![name], |(_, f)| f.to_vec());
+    for f in fields {
+        form[f] = value.clone();
     }
-    Ok(())
+    let mut out: SpecForm =
+        serde_json::from_value(form).map_err(|e| bad(format!("--grid {name}={v}: {e}")))?;
+    // The CLI's switches are not in the serialized form.
+    (out.blind_caustics, out.no_direct_light) = (base.blind_caustics, base.no_direct_light);
+    (out.no_caustics, out.no_diffuse_interreflection) =
+        (base.no_caustics, base.no_diffuse_interreflection);
+    Ok(out)
 }
 
 /// Every combination, first axis slowest: the values chosen, by axis.
@@ -156,28 +133,19 @@ fn combinations(axes: &[Axis]) -> Vec<Vec<usize>> {
 }
 
 pub fn run_sweep(a: SweepArgs) -> anyhow::Result<()> {
-    if let Some(t) = a.time_limit
-        && !(t > 0.0 && t.is_finite())
-    {
-        return Err(bad(format!(
-            "--time-limit must be a positive number of seconds, got {t}"
-        )));
-    }
     let axes = parse_grid(&a.grid)?;
     let combos = combinations(&axes);
     // Check every combination before rendering any.
-    let mut all_params = Vec::new();
+    let mut specs = Vec::new();
     for c in &combos {
-        let mut pa = a.params.clone();
+        let mut form = a.spec.clone();
         for (axis, &i) in axes.iter().zip(c) {
-            set(&mut pa, &axis.name, &axis.values[i])?;
+            form = set(&form, &axis.name, &axis.values[i])?;
         }
-        if !matches!(pa.integrator, IntegratorArg::Ppm) {
-            // ppm's settings apply to the ppm renders of a grid that mixes integrators.
-            let d = photonbox::render::RenderParams::default();
-            (pa.iterations, pa.alpha, pa.radius) = (None, d.alpha, None);
-        }
-        all_params.push(params_from_args(&pa)?);
+        specs.push(spec_from_flags(
+            &form.only_fields_of_its_integrator(),
+            true,
+        )?);
     }
     let scene = Scene::load(&a.scene).map_err(|e| bad(format!("{}: {e}", a.scene.display())))?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
@@ -186,35 +154,22 @@ pub fn run_sweep(a: SweepArgs) -> anyhow::Result<()> {
         None => render_reference(&a, &scene)?,
     };
     let mut rows = Vec::new();
-    for (c, params) in combos.iter().zip(&all_params) {
+    for (c, spec) in combos.iter().zip(&specs) {
         let label = describe_choice(&axes, c);
         eprintln!("sweep: {label}");
         reset_peak_rss();
-        let mut out = if params.integrator == IntegratorKind::Ppm {
-            // Through render_ppm, for the error after every pass.
-            let stop = Stop {
-                time_limit: a.time_limit,
-                ..Stop::after(params.iterations)
-            };
-            let opts = PpmOptions {
-                reference: Some(&reference),
-                ..PpmOptions::new(stop, String::new())
-            };
-            ppm::render_ppm(&scene, params, opts, &Control::none(), &mut |_| {
-                ControlFlow::Continue(())
-            })
-            .map_err(|e| bad(format!("{label}: {e}")))?
-            .output
-        } else {
-            render::render(&scene, params, &Control::none()).context("render")?
+        let inputs = Inputs {
+            reference: Some(&reference),
+            ..Inputs::fresh()
         };
-        let error = match out.stats.error {
-            Some(e) => e,
-            None => {
-                compare(&out.image, &reference).map_err(|e| bad(format!("--reference: {e}")))?
-            }
-        };
-        out.stats.error = Some(error);
+        let out = render::run(&scene, spec, inputs, &Control::none(), &mut |_| {
+            ControlFlow::Continue(())
+        })
+        .map_err(|e| match e {
+            RenderError::Input(_) | RenderError::Spec(_) => bad(format!("{label}: {e}")),
+            e => anyhow::Error::new(e).context("render"),
+        })?;
+        let error = out.stats.error.unwrap_or_default();
         eprintln!(
             "  {:.2}s  {}",
             out.stats.times.total,
@@ -237,24 +192,33 @@ const REFERENCE_SEED_OFFSET: u64 = 1_000_003;
 
 /// Without --reference: a long ppm render at the sweep's resolution, saved beside the results.
 fn render_reference(a: &SweepArgs, scene: &Scene) -> anyhow::Result<Image> {
-    let mut pa = a.params.clone();
-    pa.integrator = IntegratorArg::Ppm;
-    pa.iterations = Some(a.reference_passes);
-    // Another seed than the renders it measures: a ppm render compared with a reference
-    // made from the same random numbers would show no error at all.
-    pa.seed = pa.seed.wrapping_add(REFERENCE_SEED_OFFSET);
-    let params = params_from_args(&pa)?;
+    let base = &a.spec;
+    let form = SpecForm {
+        integrator: Some(REFERENCE_INTEGRATOR),
+        iterations: Some(a.reference_passes),
+        // Another seed than the renders it measures: a ppm render compared with a
+        // reference made from the same random numbers would show no error at all.
+        seed: Some(base.seed.unwrap_or(1).wrapping_add(REFERENCE_SEED_OFFSET)),
+        // All its passes, however long they take.
+        time_limit: None,
+        target_error: None,
+        ..base.clone()
+    };
+    let spec = spec_from_flags(&form, false)?;
     let path = a.out.join("reference.exr");
+    let (photons, caustic) = spec
+        .photon_mapping()
+        .map_or((0, 0), |p| (p.photons, p.caustic_photons));
     eprintln!(
-        "sweep: no --reference given: rendering one with ppm, {} passes of {} + {} photons, seed {}, into {}",
-        params.iterations,
-        params.photons,
-        params.caustic_photons,
-        params.seed,
+        "sweep: no --reference given: rendering one with {}, {} passes of {photons} + \
+         {caustic} photons, seed {}, into {}",
+        REFERENCE_INTEGRATOR.as_str(),
+        a.reference_passes,
+        spec.seed,
         path.display()
     );
     let t = Instant::now();
-    let out = render::render(scene, &params, &Control::none()).context("reference")?;
+    let out = render::render(scene, &spec, &Control::none()).context("reference")?;
     output::write_exr(&out.image, &path).with_context(|| format!("writing {}", path.display()))?;
     eprintln!("sweep: reference done in {:.1}s", t.elapsed().as_secs_f64());
     Ok(out.image)

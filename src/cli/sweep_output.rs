@@ -36,12 +36,16 @@ impl Row {
         let s = &self.out.stats;
         let (p, t, e) = (&s.params, &s.times, self.error());
         vec![
-            ("integrator", p.integrator.clone()),
-            ("photons", p.photons.to_string()),
-            ("caustic_photons", p.caustic_photons.to_string()),
-            ("k", p.k.to_string()),
-            ("gather_rays", p.gather_rays.to_string()),
-            ("spp", p.spp.to_string()),
+            (
+                "integrator",
+                p.integrator
+                    .map_or(String::new(), |i| i.as_str().to_string()),
+            ),
+            ("photons", shown(p.photons)),
+            ("caustic_photons", shown(p.caustic_photons)),
+            ("k", shown(p.k)),
+            ("gather_rays", shown(p.gather_rays)),
+            ("spp", shown(p.spp)),
             ("passes", s.ppm.as_ref().map_or(1, |x| x.passes).to_string()),
             ("photon_trace_s", format!("{:.6}", t.photon_trace)),
             ("build_maps_s", format!("{:.6}", t.build_maps)),
@@ -60,6 +64,11 @@ impl Row {
             ),
         ]
     }
+}
+
+/// A field its integrator reads, or nothing.
+fn shown<T: ToString>(v: Option<T>) -> String {
+    v.map_or(String::new(), |v| v.to_string())
 }
 
 pub fn describe_choice(axes: &[Axis], c: &[usize]) -> String {

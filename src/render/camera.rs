@@ -6,7 +6,7 @@ use glam::Vec3A;
 use crate::render::geometry::Ray;
 
 /// The largest image side, from a scene or a render's parameters.
-pub const MAX_IMAGE_SIDE: u32 = 16384;
+pub use crate::spec::MAX_IMAGE_SIDE;
 
 #[derive(Clone, Debug)]
 pub struct Camera {

@@ -5,13 +5,14 @@
 
 use std::collections::BTreeMap;
 
-use crate::render::integrator::{IntegratorKind, Plan, RenderParams};
+use crate::render::integrator::Plan;
 use crate::render::light::Light;
 use crate::render::material::Material;
 use crate::render::math::max_component;
-use crate::render::photon::{PhotonParams, PhotonStore};
+use crate::render::photon::PhotonParams;
 use crate::render::scene::Scene;
 use crate::render::stats::Effect;
+use crate::spec::{PhotonStore, RenderSpec};
 
 /// What a job will simulate and the photon maps that takes.
 pub struct Analysis {
@@ -58,8 +59,8 @@ fn light_effect(scene: &Scene, i: usize, light: &Light, how: &str) -> Effect {
     )
 }
 
-pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
-    let plan = Plan::new(params);
+pub fn analyse(scene: &Scene, spec: &RenderSpec) -> Analysis {
+    let plan = Plan::new(spec);
     let has = |f: fn(&Material) -> bool| scene.materials.iter().any(f);
     let mirror = has(|m| matches!(m, Material::Mirror { .. }));
     let glass = has(|m| matches!(m, Material::Dielectric { .. }));
@@ -74,9 +75,10 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
         .iter()
         .enumerate()
         .any(|(i, l)| max_component(l.power()) > 0.0 && !dark_lights.contains(&(i as u32)));
-    let switches = params.effects;
-    let photon = params.integrator != IntegratorKind::Raytrace;
-    let direct_only = params.photon_store == PhotonStore::DirectOnly;
+    let switches = spec.effects;
+    let mapping = spec.photon_mapping();
+    let photon = mapping.is_some();
+    let direct_only = mapping.is_some_and(|p| p.photon_store == PhotonStore::DirectOnly);
 
     let caustic_map = plan.needs_caustic_map() && specular && lit && diffuse;
     let global_map = !plan.global_classes().is_empty() && lit && diffuse;
@@ -162,7 +164,7 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
     e.insert(
         "diffuse_interreflection".into(),
         if global_map && !direct_only {
-            let how = if params.gather_rays > 0 {
+            let how = if mapping.is_some_and(|p| p.gather_rays > 0) {
                 "final gathering over the global photon map"
             } else {
                 "global photon map"
@@ -209,17 +211,16 @@ pub fn analyse(scene: &Scene, params: &RenderParams) -> Analysis {
         e.insert(format!("lights[{i}]"), light_effect(scene, i, light, how));
     }
 
+    let (global_map, caustic_map) = (global_map && photon, caustic_map && photon);
     let photon_params = PhotonParams {
-        global_photons: if global_map { params.photons } else { 0 },
-        caustic_photons: if caustic_map {
-            params.caustic_photons
-        } else {
-            0
-        },
-        store: params.photon_store,
-        max_depth: params.max_depth,
-        seed: params.seed,
-        aim_caustics: params.aim_caustics,
+        global_photons: mapping.filter(|_| global_map).map_or(0, |p| p.photons),
+        caustic_photons: mapping
+            .filter(|_| caustic_map)
+            .map_or(0, |p| p.caustic_photons),
+        store: mapping.map_or(PhotonStore::Indirect, |p| p.photon_store),
+        max_depth: spec.max_depth,
+        seed: spec.seed,
+        aim_caustics: mapping.is_none_or(|p| p.aim_caustics),
         dark_lights,
     };
     Analysis {

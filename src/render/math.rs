@@ -89,11 +89,11 @@ impl Frame {
 /// about 3e-7. The angle is folded onto [-pi/2, pi/2] by its symmetries alone (a subtraction
 /// and an absolute value, no quadrant index), and Taylor polynomials cover that interval
 /// (their first omitted terms are below 6e-8 there). Sampling calls this once or twice per
-/// bounce: libm's `sincosf` was 8% of photon tracing, and the quadrant-reducing version this
-/// replaced spent a float-to-int conversion and a four-way jump on every call. The
-/// polynomials are evaluated in Estrin's scheme (powers y, y^2, y^4 of psi^2), a shorter
-/// dependency chain than Horner's. Photon tracing of both maps at n = 100k on one thread:
-/// 73.3-74.0 -> 72.1-72.3 ms with Horner's scheme, and about 0.8 ms less with Estrin's.
+/// bounce: libm's `sincosf` showed up in photon tracing's profile, and the quadrant-reducing
+/// version this replaced spent a float-to-int conversion and a four-way jump on every call.
+/// The polynomials are evaluated in Estrin's scheme (powers y, y^2, y^4 of psi^2), a shorter
+/// dependency chain than Horner's (measured: docs/performance-history.md, "sine and cosine
+/// in turns").
 #[inline]
 pub fn sin_cos_turns(u: f32) -> (f32, f32) {
     use std::f32::consts::TAU;

@@ -13,17 +13,23 @@ pub mod integrator;
 pub mod light;
 pub mod material;
 pub mod math;
+mod oneshot;
+mod outcome;
 pub mod output;
 pub mod photon;
-pub mod pipeline;
 pub mod ppm;
+mod run;
 pub mod sampling;
 pub mod scene;
 pub mod stats;
 
 pub use control::{Cancelled, Control, Phase, Progress};
 pub use film::Image;
-pub use integrator::{EffectSwitches, IntegratorKind, ParamError, RenderParams};
+pub use oneshot::trace_maps;
+pub use outcome::{RenderError, RenderOutput};
 pub use photon::{PhotonMaps, PhotonStore};
-pub use pipeline::{RenderOutput, render, render_with_maps, trace_maps};
+pub use run::{
+    Inputs, MapSource, Needs, OnPass, Prebuilt, ProgressModel, SuppliedMaps, TraceNow, fingerprint,
+    render, run,
+};
 pub use scene::{Scene, SceneDesc, SceneError};

@@ -84,8 +84,8 @@ pub fn uniform_sphere(u: Vec2) -> Vec3A {
 /// Cosine-weighted direction in the local hemisphere around +z (Malley's method);
 /// pdf cos(theta)/pi. The disk point comes from the polar map (r = sqrt(u.x), phi = 2 pi
 /// u.y), not Shirley and Chiu's concentric one: it has no branch and no division, and for
-/// independent samples (the only kind this renderer draws) the two are equivalent. Photon tracing at
-/// 100k + 100k photons on scene (1): 51 -> 46 ms (docs/performance-history.md).
+/// independent samples (the only kind this renderer draws) the two are equivalent (measured:
+/// docs/performance-history.md, "polar map for cosine sampling").
 #[inline]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3A {
     let r = u.x.sqrt();

@@ -1,7 +1,14 @@
 //! What a render reports about itself (STATS.json, and the server's job stats).
 //! A boundary type: it is serialized, the engine's own types are not.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+
+use crate::render::accuracy::ImageError;
+
+use crate::render::camera::Camera;
+use crate::render::photon::{IrradianceCache, Photon, PhotonMap, PhotonMaps};
+use crate::render::scene::Scene;
+use crate::spec::{RenderSpec, SpecForm};
 
 #[derive(Serialize, Clone, Debug, Default, PartialEq)]
 pub struct Times {
@@ -26,6 +33,8 @@ pub struct PhotonCounts {
     pub bytes_per_photon: f64,
     /// Points with precomputed irradiance used by this render.
     pub irradiance_points: u64,
+    /// Photons this render emitted itself: 0 when its maps were traced before (a cache).
+    pub traced_by_this_job: u64,
 }
 
 /// One effect of light transport, whether this job simulates it, and why.
@@ -47,24 +56,10 @@ pub struct Radius {
 }
 
 #[derive(Serialize, Clone, Debug, PartialEq)]
-pub struct ParamsEcho {
-    pub integrator: String,
-    pub photons: u64,
-    pub caustic_photons: u64,
-    pub k: usize,
-    pub photon_store: String,
-    pub gather_rays: u32,
-    pub spp: u32,
-    pub max_depth: u32,
-    pub seed: u64,
-    pub width: u32,
-    pub height: u32,
-}
-
-#[derive(Serialize, Clone, Debug, PartialEq)]
 pub struct RenderStats {
     pub scene: Option<String>,
-    pub params: ParamsEcho,
+    /// The spec rendered, every field its integrator reads given, at the output's size.
+    pub params: SpecForm,
     pub times: Times,
     pub photons: PhotonCounts,
     pub effects: std::collections::BTreeMap<String, Effect>,
@@ -73,8 +68,143 @@ pub struct RenderStats {
     pub threads: usize,
     /// Progressive photon mapping: parameters, radii and errors per pass.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub ppm: Option<crate::render::ppm::PpmReport>,
+    pub ppm: Option<PpmReport>,
     /// The final image against the reference, when one was given.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub error: Option<crate::render::accuracy::ImageError>,
+    pub error: Option<ImageError>,
+}
+
+/// Why a progressive render stopped.
+#[derive(Serialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    Iterations,
+    TimeLimit,
+    TargetError,
+    /// The caller's per-pass callback asked to stop (to yield, or to save and exit).
+    Paused,
+}
+
+/// The `ppm` section of STATS.json.
+#[derive(Serialize, Clone, Debug, PartialEq)]
+pub struct PpmReport {
+    pub alpha: f64,
+    pub passes: u32,
+    /// Initial radius of the global and caustic maps' estimates (scene units).
+    pub radius_initial_global: f64,
+    pub radius_initial_caustic: f64,
+    /// "radius": given; "auto": median k-NN distance (k = `params.k`) in the first pass.
+    pub radius_source: &'static str,
+    pub stopped_by: StopReason,
+    /// Every pass up to 256, then thinned to about 256 per doubling of the pass count.
+    pub history: Vec<PassStats>,
+}
+
+/// What one pass did.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+pub struct PassStats {
+    /// 1-based.
+    pub pass: u32,
+    /// Radii of this pass's estimates (scene units; 0 where the map was not built).
+    pub radius_global: f64,
+    pub radius_caustic: f64,
+    pub photon_trace: f64,
+    pub build_maps: f64,
+    pub render: f64,
+    /// Seconds spent in all passes up to and including this one.
+    pub elapsed: f64,
+    pub global_stored: u64,
+    pub caustic_stored: u64,
+    /// The pass average so far against the reference, when there is one.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub error: Option<ImageError>,
+}
+
+/// Seconds summed over all passes, by phase.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, Default, PartialEq)]
+pub struct PassTotals {
+    pub photon_trace: f64,
+    pub build_maps: f64,
+    pub render: f64,
+}
+
+/// What [`collect`] reports on.
+pub(crate) struct StatsInput<'a> {
+    pub scene: &'a Scene,
+    pub maps: &'a PhotonMaps,
+    pub spec: &'a RenderSpec,
+    pub camera: &'a Camera,
+    pub cache: Option<&'a IrradianceCache>,
+    /// Caustic and global search bounds.
+    pub radii: (f32, f32),
+    /// Precompute and camera-pass seconds.
+    pub times: (f64, f64),
+    pub nonfinite_samples: u64,
+    pub effects: std::collections::BTreeMap<String, Effect>,
+}
+
+/// STATS.json for one render (a progressive render adds its `ppm` section and sums).
+pub(crate) fn collect(s: &StatsInput) -> RenderStats {
+    let maps = s.maps;
+    let count = |m: &Option<PhotonMap>| m.as_ref().map_or((0, 0), |m| (m.emitted, m.len() as u64));
+    let (global_emitted, global_stored) = count(&maps.global);
+    let (caustic_emitted, caustic_stored) = count(&maps.caustic);
+    let stored = global_stored + caustic_stored;
+    let (precompute, render) = s.times;
+    let (caustic_max, global_max) = s.radii;
+    let mut params = SpecForm::of(s.spec);
+    (params.width, params.height) = (Some(s.camera.width), Some(s.camera.height));
+    RenderStats {
+        scene: s.scene.name.clone(),
+        params,
+        times: Times {
+            photon_trace: maps.trace_seconds,
+            build_maps: maps.build_seconds,
+            precompute,
+            render,
+            total: maps.trace_seconds + maps.build_seconds + precompute + render,
+        },
+        photons: PhotonCounts {
+            global_emitted,
+            global_stored,
+            caustic_emitted,
+            caustic_stored,
+            map_bytes: maps.bytes() as u64,
+            bytes_per_photon: if stored > 0 {
+                maps.bytes() as f64 / stored as f64
+            } else {
+                std::mem::size_of::<Photon>() as f64
+            },
+            irradiance_points: s.cache.map_or(0, |c| c.len() as u64),
+            traced_by_this_job: global_emitted + caustic_emitted,
+        },
+        effects: s.effects.clone(),
+        radius: Radius {
+            caustic_max: if maps.caustic.is_some() {
+                caustic_max as f64
+            } else {
+                0.0
+            },
+            global_rms: s.cache.map_or(0.0, |c| c.mean_r2.sqrt()),
+            global_max: if s.cache.is_some() {
+                global_max as f64
+            } else {
+                0.0
+            },
+        },
+        nonfinite_samples: s.nonfinite_samples,
+        threads: rayon::current_num_threads(),
+        ppm: None,
+        error: None,
+    }
+}
+
+impl RenderStats {
+    /// The render read maps traced before (a cache): it traced nothing itself.
+    pub(crate) fn maps_were_reused(&mut self) {
+        let t = &mut self.times;
+        (t.photon_trace, t.build_maps) = (0.0, 0.0);
+        t.total = t.precompute + t.render;
+        self.photons.traced_by_this_job = 0;
+    }
 }

@@ -1,5 +1,6 @@
 //! The photon-map cache. Photon maps do not depend on the camera, so jobs that differ only
-//! in camera, resolution, k, spp or exposure share them, across users (key: `jobs::cache_key`).
+//! in camera, resolution, k, spp or exposure share them, across users (key: [`cache_key`]).
+//! A job reaches it through [`CachedMaps`], the engine's `MapSource` for one job.
 //! Least-recently-used eviction within a byte budget; maps a render holds (an `Arc` clone
 //! outside the cache) are never evicted from under it. Two jobs missing the same key at once
 //! trace it once: the second waits for the first.
@@ -9,7 +10,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
-use crate::render::{Cancelled, PhotonMaps};
+use crate::render::photon::{PhotonParams, build_photon_maps};
+use crate::render::{Cancelled, Control, MapSource, PhotonMaps, Scene, SuppliedMaps};
 
 /// Whether a job's maps came from the cache.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -150,5 +152,48 @@ impl MapCache {
 
     pub fn bytes(&self) -> u64 {
         self.lock().entries.values().map(|e| e.bytes).sum()
+    }
+}
+
+/// The photon-map cache key: a content hash of the scene without its camera (see
+/// `scenes::ResolvedScene::without_camera`), the parameters that shape the maps, and the
+/// renderer's version.
+pub fn cache_key(scene_without_camera: &str, photon_params: &PhotonParams) -> String {
+    let text = format!(
+        "photonbox {}\n{}\n{:?}",
+        env!("CARGO_PKG_VERSION"),
+        scene_without_camera,
+        photon_params
+    );
+    super::auth::sha256_hex(text.as_bytes())
+}
+
+/// One job's photon maps through the cache: what the engine asks for, and what came of it
+/// (STATS.json's `cache`).
+pub struct CachedMaps<'a> {
+    pub cache: &'a MapCache,
+    /// The job's scene without its camera (its hash).
+    pub scene_without_camera: &'a str,
+    pub cancel: &'a AtomicBool,
+    /// The outcome and key of the last lookup (none: the job needed no maps).
+    pub used: Mutex<Option<(CacheOutcome, String)>>,
+}
+
+impl MapSource for CachedMaps<'_> {
+    fn photon_maps(
+        &self,
+        scene: &Scene,
+        params: &PhotonParams,
+        control: &Control,
+    ) -> Result<SuppliedMaps, Cancelled> {
+        let key = cache_key(self.scene_without_camera, params);
+        let (maps, outcome) = self.cache.get_or_build(&key, self.cancel, || {
+            build_photon_maps(scene, params, control)
+        })?;
+        *self.used.lock().unwrap_or_else(|e| e.into_inner()) = Some((outcome, key));
+        Ok(SuppliedMaps {
+            maps,
+            traced: outcome == CacheOutcome::Miss,
+        })
     }
 }

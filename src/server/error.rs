@@ -4,7 +4,8 @@
 use axum::Json;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
-use serde_json::json;
+
+use super::views::ErrorBody;
 
 #[derive(Debug)]
 pub struct ApiError {
@@ -54,17 +55,32 @@ impl IntoResponse for ApiError {
     /// is the operator's, not the client's.
     fn into_response(self) -> Response {
         if self.status.is_server_error() {
-            let id = &super::auth::new_token()[..12];
+            let id = super::auth::new_token()[..12].to_string();
             tracing::error!(request_id = id, "{}", self.message);
-            let body = json!({
-                "error": format!("internal error (request {id}: see the server's log)"),
-                "path": null,
-                "request_id": id,
-            });
+            let body = ErrorBody {
+                error: format!("internal error (request {id}: see the server's log)"),
+                path: None,
+                request_id: Some(id),
+            };
             return (self.status, Json(body)).into_response();
         }
-        let body = json!({ "error": self.message, "path": self.path });
+        let body = ErrorBody {
+            error: self.message,
+            path: self.path,
+            request_id: None,
+        };
         (self.status, Json(body)).into_response()
+    }
+}
+
+impl From<super::scenes::SceneRefError> for ApiError {
+    fn from(e: super::scenes::SceneRefError) -> ApiError {
+        match e {
+            super::scenes::SceneRefError::Invalid { path, message } => {
+                ApiError::invalid(path, message)
+            }
+            super::scenes::SceneRefError::Internal(m) => ApiError::internal(m),
+        }
     }
 }
 

@@ -12,7 +12,8 @@ use rusqlite::{Connection, OptionalExtension, params};
 use super::auth::{User, UserId, new_token, token_hash};
 
 /// A job's lifecycle.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(serde::Serialize, utoipa::ToSchema, Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[serde(rename_all = "lowercase")]
 pub enum Status {
     Queued,
     Running,
@@ -75,8 +76,11 @@ pub struct JobRow {
     pub result_bytes: u64,
     /// The estimated size of the result files (`needs::JobNeeds::result_bytes`), stored.
     pub result_estimate: u64,
-    /// The job's parameters as submitted (validated).
+    /// The job's spec as validated: every field its integrator reads (`JobSpec::to_form`;
+    /// rows from before specs were stored whole hold the params as submitted).
     pub params_json: String,
+    /// The output's width and height (resolved at submit): a reference must match them.
+    pub size: Option<(u32, u32)>,
     /// Estimated peak memory of the render (`needs::JobNeeds`), kept so that a restart can
     /// queue the job without parsing its scene again.
     pub memory_bytes: u64,
@@ -134,7 +138,26 @@ fn migrate(conn: &Connection) -> rusqlite::Result<()> {
             "ALTER TABLE jobs ADD COLUMN result_estimate INTEGER NOT NULL DEFAULT 0",
         )?;
     }
+    if !has("width")? {
+        // The output size, resolved at submit; a finished job of an older store has it in
+        // its stats.
+        conn.execute_batch(
+            "ALTER TABLE jobs ADD COLUMN width INTEGER;
+             ALTER TABLE jobs ADD COLUMN height INTEGER;
+             UPDATE jobs SET width = json_extract(stats_json, '$.params.width'),
+                             height = json_extract(stats_json, '$.params.height')
+              WHERE stats_json IS NOT NULL AND json_valid(stats_json);",
+        )?;
+    }
     Ok(())
+}
+
+/// An image side as stored (NULL, or anything but a u32 from an edited store: unknown).
+fn side(v: rusqlite::types::ValueRef) -> Option<u32> {
+    match v {
+        rusqlite::types::ValueRef::Integer(i) => u32::try_from(i).ok(),
+        _ => None,
+    }
 }
 
 impl Store {
@@ -222,8 +245,9 @@ impl Store {
             let id = rand::random_range(1..(1i64 << 53));
             let inserted = conn.execute(
                 "INSERT INTO jobs (id, user_id, public, status, scene_name, scene_json,
-                                   params_json, memory_bytes, created, result_estimate)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+                                   params_json, memory_bytes, created, result_estimate,
+                                   width, height)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
                 params![
                     id,
                     row.user_id,
@@ -234,7 +258,9 @@ impl Store {
                     row.params_json,
                     row.memory_bytes as i64,
                     row.created,
-                    row.result_estimate as i64
+                    row.result_estimate as i64,
+                    row.size.map(|s| s.0),
+                    row.size.map(|s| s.1)
                 ],
             );
             match inserted {
@@ -290,7 +316,7 @@ impl Store {
         let mut st = conn.prepare(
             "SELECT id, user_id, public, status, scene_name, length(CAST(scene_json AS BLOB)),
                     params_json, created, started, finished, error, stats_json, memory_bytes,
-                    result_estimate
+                    result_estimate, width, height
              FROM jobs ORDER BY created, id",
         )?;
         let rows = st.query_map([], |r| {
@@ -311,6 +337,7 @@ impl Store {
                 stats_json: r.get(11)?,
                 memory_bytes: r.get::<_, i64>(12)?.max(0) as u64,
                 result_estimate: r.get::<_, i64>(13)?.max(0) as u64,
+                size: side(r.get_ref(14)?).zip(side(r.get_ref(15)?)),
             })
         })?;
         rows.collect()

@@ -14,18 +14,88 @@ use super::AppRef;
 use super::api::{blocking, visible};
 use super::auth::User;
 use super::error::ApiError;
-use super::jobs::{JobRequest, ParamsJson, from_json, resolve_scene};
+use super::jobs::{JobRequest, JobSpec, from_json};
 use super::needs::JobNeeds;
+use super::scenes::resolve_request;
 use super::store::{JobRow, Status, now};
+use super::views::{ErrorBody, SelfLink, Submitted};
+use crate::spec::SpecForm;
 
+/// Submit a job: a scene (yours, or a built-in one by name) and its parameters. It is
+/// committed to the store before the 202, and queued (round-robin over users).
+#[utoipa::path(post, path = "/api/jobs", tag = "jobs", security(("bearer" = [])),
+    request_body = JobRequest,
+    responses(
+        (status = 202, description = "Accepted and queued", body = Submitted),
+        (status = 400, description = "Malformed JSON, or not an object", body = ErrorBody),
+        (status = 401, description = "No or an unknown token", body = ErrorBody),
+        (status = 408, description = "The body did not arrive in time", body = ErrorBody),
+        (status = 413, description = "The body is over the server's limit", body = ErrorBody),
+        (status = 422, description = "A field is invalid or over a limit: `path` names it",
+            body = ErrorBody),
+        (status = 429, description = "You have the most queued jobs allowed", body = ErrorBody),
+    ))]
 pub async fn submit_job(
     State(app): State<AppRef>,
     user: User,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
-    // The token was checked (the `User` extractor) before any of the body is read; a body
-    // declared too large is refused before it is read too.
+    let value = read_body(&app, &headers, body).await?;
+    let req: JobRequest = from_json(value, "")?;
+    let form: SpecForm = from_json(req.params.unwrap_or(json!({})), "params")?;
+    let spec = JobSpec::from_form(&form)?;
+    // Reading and parsing the scene (and its meshes) is blocking work.
+    let (app2, render) = (app.clone(), spec.render.clone());
+    let (scene_name, scene_value) = (req.scene_name.clone(), req.scene);
+    let (scene, needs) = blocking(move || {
+        let scene = resolve_request(&app2.catalog, scene_value, scene_name.as_deref())?;
+        let needs = JobNeeds::estimate(&scene.desc, &render);
+        needs.check(&render, &app2.config.limits)?;
+        Ok((scene, needs))
+    })
+    .await?;
+    let camera = &scene.desc.camera;
+    let size = spec.render.resolution((camera.width, camera.height));
+    if let Some(reference) = spec.reference_job {
+        check_reference(&app, &user, reference, size)?;
+    }
+    let uploaded = req.scene_name.is_none().then_some(scene.text.clone());
+    let row = JobRow {
+        id: 0,
+        user_id: user.id,
+        public: req.public,
+        status: Status::Queued,
+        scene_name: scene.name.clone(),
+        scene_bytes: uploaded.as_ref().map_or(0, |t| t.len() as u64),
+        result_bytes: needs.render.result_bytes,
+        result_estimate: needs.render.result_bytes,
+        memory_bytes: needs.render.memory_bytes,
+        params_json: serde_json::to_string(&spec.to_form())
+            .map_err(|e| ApiError::internal(e.to_string()))?,
+        size: Some(size),
+        created: now(),
+        started: None,
+        finished: None,
+        error: None,
+        stats_json: None,
+    };
+    drop(scene);
+    let id = commit(&app, &user, row, uploaded).await?;
+    let body = Submitted {
+        id,
+        status: Status::Queued,
+        links: SelfLink {
+            self_: format!("/api/jobs/{id}"),
+        },
+    };
+    let location = [(header::LOCATION, body.links.self_.clone())];
+    Ok((StatusCode::ACCEPTED, location, Json(body)).into_response())
+}
+
+/// The request body as JSON, read within the size and time limits; a body declared too
+/// large is refused before it is read.
+async fn read_body(app: &AppRef, headers: &HeaderMap, body: Body) -> Result<Value, ApiError> {
     let limit = app.config.limits.body_bytes;
     let too_large = || {
         ApiError::new(
@@ -63,43 +133,25 @@ pub async fn submit_job(
             )
         }
     })?;
-    let value: Value = serde_json::from_slice(&body).map_err(|e| {
-        ApiError::new(
-            StatusCode::BAD_REQUEST,
-            Some("body"),
-            format!("malformed JSON: {e}"),
-        )
-    })?;
+    let bad = |m: String| ApiError::new(StatusCode::BAD_REQUEST, Some("body"), m);
+    let value: Value =
+        serde_json::from_slice(&body).map_err(|e| bad(format!("malformed JSON: {e}")))?;
     if !value.is_object() {
-        return Err(ApiError::new(
-            StatusCode::BAD_REQUEST,
-            Some("body"),
-            "expected a JSON object",
-        ));
+        return Err(bad("expected a JSON object".into()));
     }
-    let req: JobRequest = from_json(value, "")?;
-    let params_json: ParamsJson = from_json(req.params.unwrap_or(json!({})), "params")?;
-    let params = params_json.to_params()?;
+    Ok(value)
+}
+
+/// Check the user's queue and storage and commit the job, durable before it is
+/// acknowledged; then publish it and queue it. From the checks to the job table, one
+/// submission at a time (see `App::submit`).
+async fn commit(
+    app: &AppRef,
+    user: &User,
+    mut row: JobRow,
+    uploaded: Option<std::sync::Arc<str>>,
+) -> Result<i64, ApiError> {
     let limits = &app.config.limits;
-    // Reading and parsing the scene (and its meshes) is blocking work.
-    let (app2, render) = (app.clone(), params.render.clone());
-    let (scene_name, scene_value) = (req.scene_name.clone(), req.scene);
-    let (mut scene, needs) = blocking(move || {
-        let scene = resolve_scene(&app2.catalog, scene_value, scene_name.as_deref())?;
-        let needs = JobNeeds::estimate(&scene.desc, &render);
-        needs.check(&render, &app2.config.limits)?;
-        Ok((scene, needs))
-    })
-    .await?;
-    if let Some(reference) = params.reference_job {
-        let p = &params.render;
-        let size = (
-            p.width.unwrap_or(scene.desc.camera.width),
-            p.height.unwrap_or(scene.desc.camera.height),
-        );
-        check_reference(&app, &user, reference, size)?;
-    }
-    // From the checks to the job table, one submission at a time (see `App::submit`).
     let _submitting = app.submit.lock().await;
     if app.jobs.queued_of(user.id) >= limits.max_queued_per_user {
         return Err(ApiError::new(
@@ -111,39 +163,13 @@ pub async fn submit_job(
             ),
         ));
     }
-    let scene_text = req
-        .scene_name
-        .is_none()
-        .then(|| std::mem::take(&mut scene.text));
-    let scene_bytes = scene_text.as_ref().map_or(0, |t| t.len() as u64);
-    check_storage(&app, &user, scene_bytes + needs.result_bytes)?;
-    let mut row = JobRow {
-        id: 0,
-        user_id: user.id,
-        public: req.public,
-        status: Status::Queued,
-        scene_name: scene.name.clone(),
-        scene_bytes,
-        result_bytes: needs.result_bytes,
-        result_estimate: needs.result_bytes,
-        memory_bytes: needs.memory_bytes,
-        params_json: serde_json::to_string(&params_json)
-            .map_err(|e| ApiError::internal(e.to_string()))?,
-        created: now(),
-        started: None,
-        finished: None,
-        error: None,
-        stats_json: None,
-    };
-    // Durable before it is acknowledged.
+    check_storage(app, user, row.scene_bytes + row.result_estimate)?;
     let (app2, row2) = (app.clone(), row.clone());
-    row.id = blocking(move || Ok(app2.store.insert_job(&row2, scene_text.as_deref())?)).await?;
-    let id = row.id;
+    row.id = blocking(move || Ok(app2.store.insert_job(&row2, uploaded.as_deref())?)).await?;
+    let (id, memory) = (row.id, row.memory_bytes);
     app.jobs.insert(row);
-    app.scheduler.enqueue(id, user.id, needs.memory_bytes);
-    let body =
-        json!({ "id": id, "status": "queued", "links": { "self": format!("/api/jobs/{id}") } });
-    Ok((StatusCode::ACCEPTED, Json(body)).into_response())
+    app.scheduler.enqueue(id, user.id, memory);
+    Ok(id)
 }
 
 /// A user's storage quota: their uploaded scenes and result files, with what this job adds
@@ -196,25 +222,13 @@ fn check_reference(
             row.status.as_str()
         )));
     }
-    let stats: Value = row
-        .stats_json
-        .as_deref()
-        .and_then(|s| serde_json::from_str(s).ok())
-        .unwrap_or(Value::Null);
-    let dim = |k: &str| {
-        stats["params"][k]
-            .as_u64()
-            .and_then(|v| u32::try_from(v).ok())
-    };
-    let ref_size = (dim("width"), dim("height"));
-    if ref_size != (Some(size.0), Some(size.1)) {
-        let shown = |v: Option<u32>| v.map_or("?".to_string(), |v| v.to_string());
+    if row.size != Some(size) {
+        let shown = row
+            .size
+            .map_or("?x?".to_string(), |(w, h)| format!("{w}x{h}"));
         return Err(invalid(format!(
-            "job {reference} is {}x{}, this job {}x{}: a reference must have the same width and height",
-            shown(ref_size.0),
-            shown(ref_size.1),
-            size.0,
-            size.1
+            "job {reference} is {shown}, this job {}x{}: a reference must have the same width and height",
+            size.0, size.1
         )));
     }
     Ok(())

@@ -1,7 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
-use photonbox::render::{Control, Image, RenderOutput, RenderParams, Scene, render};
+use photonbox::render::{Control, Image, RenderOutput, Scene, render};
+use photonbox::spec::RenderSpec;
 
 /// Parse a scene from JSON text (no folder: no OBJ files).
 pub fn scene(json: &str) -> Scene {
@@ -10,7 +11,7 @@ pub fn scene(json: &str) -> Scene {
 
 /// Render on the current thread pool, with no progress or cancel hooks; every pixel must be
 /// finite and no sample dropped as non-finite.
-pub fn render_checked(scene: &Scene, params: &RenderParams) -> RenderOutput {
+pub fn render_checked(scene: &Scene, params: &RenderSpec) -> RenderOutput {
     let out = render(scene, params, &Control::none()).expect("not cancelled");
     assert_all_finite(&out.image);
     assert_eq!(
@@ -21,7 +22,7 @@ pub fn render_checked(scene: &Scene, params: &RenderParams) -> RenderOutput {
 }
 
 /// [`render_checked`]'s image.
-pub fn render_image(scene: &Scene, params: &RenderParams) -> Image {
+pub fn render_image(scene: &Scene, params: &RenderSpec) -> Image {
     render_checked(scene, params).image
 }
 

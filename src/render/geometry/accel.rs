@@ -24,8 +24,8 @@ impl Boundable for Primitive {
 }
 
 /// Scenes of at most this many primitives are tested one by one: for the seed's boxes of a
-/// few quads and spheres, a BVH culls almost nothing and costs a traversal (measured 110 ns
-/// a camera ray through the BVH against 63 ns by a linear scan, scene 1).
+/// few quads and spheres, a BVH culls almost nothing and costs a traversal, so a linear scan
+/// is cheaper per camera ray (measured: docs/performance-history.md, "BVH or linear scan").
 const FLAT_MAX: usize = 16;
 
 /// Where a ray first meets a primitive.

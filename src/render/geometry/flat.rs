@@ -1,7 +1,7 @@
 //! Intersection for tiny scenes (the seed's boxes of a few quads and spheres): no BVH, the
 //! primitives tested four at a time in structure-of-arrays form. A BVH over a handful of
-//! large primitives culls almost nothing; testing all of them in SIMD lanes is about three
-//! times fewer instructions than one by one (measured with callgrind on photon tracing).
+//! large primitives culls almost nothing; testing all of them in SIMD lanes takes fewer
+//! instructions than one by one (measured: docs/performance-history.md, "flat SIMD tests").
 //!
 //! Same arithmetic as `shapes.rs`, lane by lane (the tests themselves are in `lanes.rs`,
 //! shared with `packet.rs`). Padding lanes never hit.
@@ -226,8 +226,8 @@ impl Flat {
 
     /// The triangles' part of a search whose closest quad or sphere hit so far is `best`,
     /// at `t_max` (the ray's own without one). Always inlined: with `#[inline]` alone the
-    /// camera pass at k = 1 measured 3-4 ms slower (two alternating rounds, 77.8 -> 81.2
-    /// ms), the one-ray search no longer compiled as one piece.
+    /// one-ray search no longer compiled as one piece and the camera pass was slower
+    /// (measured: docs/performance-history.md, "inlining the triangles' search").
     fn search_others<const ANY: bool>(
         &self,
         ray: &Ray,

@@ -26,221 +26,8 @@ mod shade;
 
 pub use shade::{Scratch, Shader};
 
-use crate::render::photon::{ClassMask, PathClass, PhotonStore};
-
-/// The closed set of integrators.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum IntegratorKind {
-    /// Direct light by shadow rays and perfect specular chains; no photon maps.
-    Raytrace,
-    /// Jensen-style photon mapping with global and caustic maps.
-    Photon,
-    /// Progressive photon mapping (Knaus and Zwicker 2011): independent passes of `photon`
-    /// with fixed-radius estimates whose radius shrinks, averaged (see `render::ppm`).
-    Ppm,
-}
-
-impl IntegratorKind {
-    pub fn name(self) -> &'static str {
-        match self {
-            IntegratorKind::Raytrace => "raytrace",
-            IntegratorKind::Photon => "photon",
-            IntegratorKind::Ppm => "ppm",
-        }
-    }
-}
-
-/// Everything a render job can set besides the scene.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RenderParams {
-    pub integrator: IntegratorKind,
-    /// Photons emitted for the global map.
-    pub photons: u64,
-    /// Photons emitted for the caustic map.
-    pub caustic_photons: u64,
-    /// Photons per radiance estimate.
-    pub k: usize,
-    pub photon_store: PhotonStore,
-    /// Final-gather rays per camera sample at the first diffuse point; 0 reads the global map.
-    pub gather_rays: u32,
-    /// Jittered samples per pixel (box filter).
-    pub spp: u32,
-    /// Longest path (surface interactions) for photons and camera rays.
-    pub max_depth: u32,
-    pub seed: u64,
-    /// Resolution override (else the scene's camera).
-    pub width: Option<u32>,
-    pub height: Option<u32>,
-    /// `ppm`: passes to render (a stop condition; see `render::ppm::Stop` for the others).
-    pub iterations: u32,
-    /// `ppm`: radius reduction, r_{i+1}^2 = r_i^2 (i + alpha) / (i + 1), in (0, 1).
-    pub alpha: f64,
-    /// `ppm`: initial radius of both maps' estimates (scene units); `None`: from the k-NN
-    /// radius of the first pass's photons (see `render::ppm::initial_radius`).
-    pub radius: Option<f32>,
-    /// Aim caustic photons at the specular objects (`photon/targets.rs`); false emits them
-    /// in every direction, as the seed did (its timing tables are measured that way).
-    pub aim_caustics: bool,
-    /// Effects the job switched off (to see their contribution, or to save time).
-    pub effects: EffectSwitches,
-}
-
-/// Effects a job may switch off, each for what the camera sees: at the first non-specular
-/// point of a camera path and at points seen through a glossy reflection. Light that
-/// reaches those points by other paths (direct light at a final-gather hit is indirect
-/// light at the point gathering) stays with the effect it belongs to there.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct EffectSwitches {
-    pub direct_light: bool,
-    /// Caustics from the caustic map; off, no caustic photon is traced.
-    pub caustics: bool,
-    /// Light from other diffuse surfaces (global map, final gathering).
-    pub diffuse_interreflection: bool,
-}
-
-impl EffectSwitches {
-    pub const ALL_ON: EffectSwitches = EffectSwitches {
-        direct_light: true,
-        caustics: true,
-        diffuse_interreflection: true,
-    };
-}
-
-impl Default for EffectSwitches {
-    fn default() -> Self {
-        EffectSwitches::ALL_ON
-    }
-}
-
-/// Default passes of `ppm`.
-pub const DEFAULT_ITERATIONS: u32 = 16;
-
-/// Most passes of `ppm` (a pass costs at least a photon trace and a camera pass).
-pub const MAX_ITERATIONS: u32 = 1_000_000;
-
-/// A render parameter out of range: the field (snake_case, as the server's JSON names it;
-/// the CLI flag is `--` and the name with dashes) and what is wrong.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{field}: {message}")]
-pub struct ParamError {
-    pub field: &'static str,
-    pub message: String,
-}
-
-/// Largest photon count per map (about 30 GB of photons at worst).
-pub const MAX_PHOTONS: u64 = 1_000_000_000;
-
-impl RenderParams {
-    /// Check every parameter's range; the engine assumes valid parameters.
-    pub fn validate(&self) -> Result<(), ParamError> {
-        use crate::render::camera::MAX_IMAGE_SIDE;
-        let bad = |field, message: String| Err(ParamError { field, message });
-        for (field, v) in [("width", self.width), ("height", self.height)] {
-            if let Some(v) = v
-                && !(1..=MAX_IMAGE_SIDE).contains(&v)
-            {
-                return bad(field, format!("must be in 1..={MAX_IMAGE_SIDE}, got {v}"));
-            }
-        }
-        for (field, v) in [
-            ("photons", self.photons),
-            ("caustic_photons", self.caustic_photons),
-        ] {
-            if v > MAX_PHOTONS {
-                return bad(field, format!("must be at most {MAX_PHOTONS}, got {v}"));
-            }
-        }
-        if !(1..=100_000).contains(&self.k) {
-            return bad("k", format!("must be in 1..=100000, got {}", self.k));
-        }
-        if !(1..=65_536).contains(&self.spp) {
-            return bad("spp", format!("must be in 1..=65536, got {}", self.spp));
-        }
-        if !(1..=1024).contains(&self.max_depth) {
-            return bad(
-                "max_depth",
-                format!("must be in 1..=1024, got {}", self.max_depth),
-            );
-        }
-        if self.gather_rays > 65_536 {
-            return bad(
-                "gather_rays",
-                format!("must be at most 65536, got {}", self.gather_rays),
-            );
-        }
-        if !(1..=MAX_ITERATIONS).contains(&self.iterations) {
-            return bad(
-                "iterations",
-                format!("must be in 1..={MAX_ITERATIONS}, got {}", self.iterations),
-            );
-        }
-        if !(self.alpha > 0.0 && self.alpha < 1.0) {
-            return bad(
-                "alpha",
-                format!("must be in (0, 1) (exclusive), got {}", self.alpha),
-            );
-        }
-        if let Some(r) = self.radius
-            && !(r > 0.0 && r.is_finite())
-        {
-            return bad("radius", format!("must be a positive number, got {r}"));
-        }
-        if self.integrator != IntegratorKind::Ppm {
-            let d = RenderParams::default();
-            if self.iterations != d.iterations {
-                return bad("iterations", "only for integrator ppm".into());
-            }
-            if self.alpha != d.alpha {
-                return bad("alpha", "only for integrator ppm".into());
-            }
-            if self.radius.is_some() {
-                return bad("radius", "only for integrator ppm".into());
-            }
-        }
-        Ok(())
-    }
-
-    /// The parameters with `ppm`'s defaults where they differ from `photon`'s: one sample
-    /// per pixel and no final gathering per pass (the passes average both out).
-    pub fn ppm_defaults() -> RenderParams {
-        RenderParams {
-            integrator: IntegratorKind::Ppm,
-            spp: 1,
-            gather_rays: 0,
-            iterations: DEFAULT_ITERATIONS,
-            // Only sets the initial radius: a small k starts with little blur, and the
-            // passes average its noise away (k = 10 against 50: block_err 0.014 against
-            // 0.020 after 64 passes on the caustic scene; docs/accuracy.md).
-            k: 10,
-            photons: 100_000,
-            caustic_photons: 100_000,
-            ..RenderParams::default()
-        }
-    }
-}
-
-impl Default for RenderParams {
-    fn default() -> Self {
-        RenderParams {
-            integrator: IntegratorKind::Photon,
-            photons: 200_000,
-            caustic_photons: 200_000,
-            k: 50,
-            photon_store: PhotonStore::Indirect,
-            gather_rays: 8,
-            spp: 4,
-            max_depth: 32,
-            seed: 1,
-            width: None,
-            height: None,
-            iterations: 1,
-            alpha: 0.7,
-            radius: None,
-            aim_caustics: true,
-            effects: EffectSwitches::ALL_ON,
-        }
-    }
-}
+use crate::render::photon::{ClassMask, PathClass};
+use crate::spec::{EffectSwitches, PhotonStore, RenderSpec};
 
 /// What is estimated at one kind of non-specular path vertex.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -277,8 +64,8 @@ pub struct Plan {
 }
 
 impl Plan {
-    pub fn new(p: &RenderParams) -> Plan {
-        Plan::for_transport(p).switched(p.effects)
+    pub fn new(spec: &RenderSpec) -> Plan {
+        Plan::for_transport(spec).switched(spec.effects)
     }
 
     /// Drop what the job switched off from the vertices the camera sees (primary and
@@ -312,35 +99,27 @@ impl Plan {
         }
     }
 
-    /// The plan of the integrator and photon store, with every effect on.
-    fn for_transport(p: &RenderParams) -> Plan {
+    /// The plan of the integrator and photon store, with every effect on: shadow rays only
+    /// for an integrator without photons, else as its photon store and gathering say.
+    fn for_transport(spec: &RenderSpec) -> Plan {
         use PathClass::*;
         let nothing = VertexPlan::NOTHING;
-        match (p.integrator, p.photon_store) {
-            (IntegratorKind::Raytrace, _) => {
-                let v = VertexPlan {
-                    shadow_rays: true,
-                    ..nothing
-                };
-                Plan {
-                    primary: v,
-                    secondary: v,
-                    gather_hit: nothing,
-                }
-            }
-            (IntegratorKind::Photon | IntegratorKind::Ppm, PhotonStore::DirectOnly) => {
-                let v = VertexPlan {
-                    global: ClassMask::of(&[Direct]),
-                    ..nothing
-                };
-                Plan {
-                    primary: v,
-                    secondary: v,
-                    gather_hit: nothing,
-                }
-            }
-            (IntegratorKind::Photon | IntegratorKind::Ppm, store) => {
-                let indirect = store == PhotonStore::Indirect;
+        let only = |v: VertexPlan| Plan {
+            primary: v,
+            secondary: v,
+            gather_hit: nothing,
+        };
+        match spec.photon_mapping() {
+            None => only(VertexPlan {
+                shadow_rays: true,
+                ..nothing
+            }),
+            Some(p) if p.photon_store == PhotonStore::DirectOnly => only(VertexPlan {
+                global: ClassMask::of(&[Direct]),
+                ..nothing
+            }),
+            Some(p) => {
+                let indirect = p.photon_store == PhotonStore::Indirect;
                 let direct_from_map = if indirect { vec![] } else { vec![Direct] };
                 let read = |extra: &[PathClass]| {
                     let mut c = direct_from_map.clone();

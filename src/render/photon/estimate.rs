@@ -149,8 +149,9 @@ const GRID_MAX_K: usize = 8;
 
 /// A search whose box meets more cells, or more photons, than this goes to the kd-tree:
 /// with 64 photons a grid search reads about what the tree's branch and bound reads (its
-/// descent and two or three leaves of 16). Without the photon limit, a caustic map of 900k
-/// photons at k = 7 made the camera pass 2.83 s against the tree's 2.45 s (scene 1).
+/// descent and two or three leaves of 16). Without the photon limit, a dense caustic map
+/// made the camera pass slower than the tree alone (measured: docs/performance-history.md,
+/// "photon limit of grid searches").
 const GRID_LIMITS: BoxLimits = BoxLimits {
     cells: 8,
     points: 64,

@@ -70,8 +70,9 @@ impl IrradianceCache {
         control: &Control,
     ) -> Result<IrradianceCache, Cancelled> {
         let photons = map.tree.items();
-        // A pass over every photon of the map (about 1 ms on one thread for scene 1's 137k),
-        // so on all threads.
+        // A pass over every photon of the map before the estimates can start, so on all
+        // threads (measured: docs/performance-history.md, "irradiance points picked in
+        // parallel").
         let (picks, points): (Vec<usize>, Vec<IrradiancePoint>) = photons
             .par_iter()
             .enumerate()

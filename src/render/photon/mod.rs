@@ -78,8 +78,8 @@ impl ClassMask {
 /// light), so it is O(1) whatever the light's power or the photon count. There is no
 /// incoming direction: the maps are only ever read through the Lambertian part of a BSDF
 /// (glossy and specular reflection are ray traced), which does not depend on it. (A 24-byte
-/// layout with f16 flux and a 16-bit direction was measured: its conversions cost 6% of
-/// photon tracing and more in every estimate.)
+/// layout with f16 flux and a 16-bit direction was slower: its conversions slowed photon
+/// tracing and every estimate; measured: docs/performance-history.md, "24-byte photons".)
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
 pub struct Photon {

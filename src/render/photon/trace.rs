@@ -13,26 +13,10 @@ use crate::render::math::luminance_f64;
 use crate::render::sampling::Stream;
 use crate::render::scene::Scene;
 
-/// Which first-hit photons the global map keeps (the seed's tri-state).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum PhotonStore {
-    /// No first-hit photons: direct light comes from shadow rays.
-    Indirect,
-    /// Every non-specular hit: direct light from the maps too.
-    All,
-    /// Only first-hit photons: the photon-map view of direct light.
-    DirectOnly,
-}
+pub use crate::spec::PhotonStore;
 
 impl PhotonStore {
-    pub fn name(self) -> &'static str {
-        match self {
-            PhotonStore::Indirect => "indirect",
-            PhotonStore::All => "all",
-            PhotonStore::DirectOnly => "direct_only",
-        }
-    }
-
+    /// Whether the global map keeps a photon of this path class.
     pub(super) fn keeps(self, class: PathClass) -> bool {
         match self {
             PhotonStore::Indirect => class != PathClass::Direct,

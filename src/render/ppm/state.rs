@@ -15,8 +15,8 @@ use std::io::{Read, Write};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::render::accuracy::ImageError;
 use crate::render::film::Image;
+use crate::render::stats::{PassStats, PassTotals};
 
 const MAGIC: &[u8] = b"photonbox-ppm-state 2\n";
 
@@ -25,34 +25,6 @@ const MAGIC_V1: &[u8] = b"photonbox-ppm-state 1\n";
 
 /// Bytes of the trailing SHA-256.
 const DIGEST: usize = 32;
-
-/// What one pass did.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-pub struct PassStats {
-    /// 1-based.
-    pub pass: u32,
-    /// Radii of this pass's estimates (scene units; 0 where the map was not built).
-    pub radius_global: f64,
-    pub radius_caustic: f64,
-    pub photon_trace: f64,
-    pub build_maps: f64,
-    pub render: f64,
-    /// Seconds spent in all passes up to and including this one.
-    pub elapsed: f64,
-    pub global_stored: u64,
-    pub caustic_stored: u64,
-    /// The pass average so far against the reference, when there is one.
-    #[serde(skip_serializing_if = "Option::is_none", default)]
-    pub error: Option<ImageError>,
-}
-
-/// Seconds summed over all passes, by phase.
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, Default, PartialEq)]
-pub struct PassTotals {
-    pub photon_trace: f64,
-    pub build_maps: f64,
-    pub render: f64,
-}
 
 /// Every pass up to this one is kept in the history; beyond it, passes are kept at
 /// logarithmically spaced intervals (about this many per doubling), so that the state stays

@@ -10,8 +10,8 @@ const CANCEL_CHECK_MIN: usize = 64 * 1024;
 
 /// Below this many items, subtrees are built on the calling thread. While the global tree
 /// is balanced the other thread traces the caustic photons; once done, it can only help
-/// with subtrees split off at this size or above (16k -> 4k: both maps' build after
-/// tracing 4.3 -> 3.8 ms at n = 100k on scene 1).
+/// with subtrees split off at this size or above, so 4k rather than 16k lets it help sooner
+/// (measured: docs/performance-history.md, "size of the subtrees split off").
 const PARALLEL_BUILD_MIN: usize = 4 * 1024;
 
 impl<T: KdItem> KdTree<T> {
@@ -52,10 +52,8 @@ impl<T: KdItem> KdTree<T> {
             return None;
         }
         // The photons in tree order: a gather from all over the input, on the critical path
-        // after the last selection, so in parallel. Global map of 1M emitted photons (1.36M
-        // stored): build 181-191 -> 156-160 ms; tracing at n = 100k (both maps, trace and
-        // build) 45.1 -> 43.3 ms (perf-tables, alternating rounds). Small trees stay on the
-        // calling thread.
+        // after the last selection, so in parallel (measured: docs/performance-history.md,
+        // "gather in tree order in parallel"). Small trees stay on the calling thread.
         let items: Vec<T> = keys
             .par_iter()
             .with_min_len(PARALLEL_BUILD_MIN)
@@ -106,16 +104,17 @@ fn bounds(keys: &[Key]) -> (Vec3A, Vec3A) {
 
 /// Median split on the axis of largest extent of the node's items, whose box the caller
 /// passes (the build has the root's from its first pass), recursively; large halves in
-/// parallel. (Choosing the axis from the node's cell instead, which spares the
-/// pass over the items, was measured: builds 4% faster, queries 25% slower.) Collects (node
-/// index, split) pairs, scattered into the heap-ordered array afterwards.
+/// parallel. (Choosing the axis from the node's cell instead, which spares the pass over
+/// the items, builds a little faster and makes queries much slower; measured:
+/// docs/performance-history.md, "split axis from the items".) Collects (node index, split)
+/// pairs, scattered into the heap-ordered array afterwards.
 ///
 /// Photons lie on planes: where more than half of a node's items share the median's
 /// coordinate (a floor meeting a wall, split across the floor's height), the split would
 /// leave some of them on each side, and every query on that plane would search both
 /// halves. Such a split is replaced by one on the next longest axis where the median is
-/// clear of ties (else the last one tried stays; k = 1 render on scene 1: precompute 18.4 ->
-/// 15.9 ms, camera pass 98.7 -> 95.8 ms; build about 1 ms slower).
+/// clear of ties (else the last one tried stays): the k = 1 render is faster for a slightly
+/// slower build (measured: docs/performance-history.md, "splits clear of ties").
 fn balance(
     items: &mut [Key],
     (lo, hi): (Vec3A, Vec3A),
@@ -167,8 +166,8 @@ fn balance(
 
 /// Moves the median of `items` on `axis` to `mid`, smaller (by `total_cmp`) before it and
 /// larger after. One instance per axis, so that the comparison reads a fixed field rather
-/// than an index checked on every call (scene 1's 137k global photons on one thread:
-/// 20.2-21.0 -> 15.8-16.2 ms, together with the left box doubling as the tie check).
+/// than an index checked on every call (measured, together with the left box doubling as
+/// the tie check: docs/performance-history.md, "median selection per axis").
 fn select_median(items: &mut [Key], mid: usize, axis: usize) {
     fn on<const A: usize>(items: &mut [Key], mid: usize) {
         items.select_nth_unstable_by(mid, |x, y| x.p[A].total_cmp(&y.p[A]));

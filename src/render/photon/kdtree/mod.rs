@@ -46,15 +46,14 @@ pub trait KdItem: Copy + Send + Sync {
 }
 
 /// Ranges of at most this many items are leaves. 16 rather than 8 spares the build its
-/// deepest level of small selections: on scene 1 (100k + 100k photons, perf-tables, two
-/// alternating runs each) the global map's build after tracing took 6.0-6.9 ms against
-/// 8.0-8.3, a ppm pass 178-180 ms against 184-188, and k-NN renders were unchanged.
+/// deepest level of small selections: builds and ppm passes are faster, k-NN renders
+/// unchanged (measured: docs/performance-history.md, "kd-tree leaf size").
 const LEAF: usize = 16;
 
-/// Up to this k, k-NN queries search by branch and bound rather than by a guessed radius.
-/// Measured on the irradiance precomputation's queries (scene 1, 100k photons, one thread),
-/// branch and bound against the gather: k = 2: 620 vs 852 ns, k = 8: 1584 vs 1694 ns,
-/// k = 11: 2076 vs 1979 ns, k = 32: 5345 vs 3292 ns.
+/// Up to this k, k-NN queries search by branch and bound rather than by a guessed radius:
+/// on the irradiance precomputation's queries, branch and bound is faster than the gather up
+/// to k = 8 and slower from k = 11 (measured: docs/performance-history.md, "branch and
+/// bound or guessed radius").
 const SMALL_K: usize = 8;
 
 /// The next query's radius guess is this factor (in area) above the last one's result.
@@ -208,8 +207,9 @@ impl<T: KdItem> KdTree<T> {
 /// Deeper than any tree of up to 2^32 items with LEAF-sized leaves.
 const MAX_DEPTH: usize = 64;
 
-/// A fixed-capacity stack for traversals that is not zeroed on creation: a zeroed 1 KiB
-/// array per query showed up as 7% of a render in memset.
+/// A fixed-capacity stack for traversals that is not zeroed on creation: zeroing a 1 KiB
+/// array per query showed up in a render's profile as memset (measured:
+/// docs/performance-history.md, "unzeroed traversal stack").
 struct Stack<T: Copy> {
     items: [MaybeUninit<T>; MAX_DEPTH],
     len: usize,

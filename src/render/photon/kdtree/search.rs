@@ -93,7 +93,8 @@ impl<T: KdItem> KdTree<T> {
     /// their items and may lower `bound`; subtrees across a plane farther than sqrt(bound)
     /// are skipped (`>`: at exactly the bound, an item as near as the k-th but with a lower
     /// index may lie across the plane). Returns the final bound. Iterative, with the far
-    /// children on a small stack: a recursive version measured 1.5x slower.
+    /// children on a small stack: a recursive version was slower (measured:
+    /// docs/performance-history.md, "iterative branch and bound").
     ///
     /// The contract with `scan`: it never raises `bound`, and it accepts no item farther
     /// than the bound as it stands. The leaf scan relies on both: it passes only items within
@@ -161,11 +162,9 @@ impl<T: KdItem> KdTree<T> {
 
     /// `scan` on the items of `lo..hi` within `bound` of `q` (see `branch_and_bound` for the
     /// contract). Most items of a leaf lie beyond the bound: their distances are computed
-    /// four at a time, and only the items within it go to `scan`. Against one distance and
-    /// one call per item, on scene 1 (perf-tables, two alternating rounds, with a first
-    /// version of `lanes.rs` in SSE2 intrinsics; the `Vec4` one measured the same or better):
-    /// render at k = 1 112.9 / 112.5 -> 110.8 / 106.9 ms, at k = 100 220.2 / 218.3 -> 215.5 /
-    /// 213.0 ms; images bit-identical.
+    /// four at a time, and only the items within it go to `scan`: renders are faster than
+    /// with one distance and one call per item, with bit-identical images (measured:
+    /// docs/performance-history.md, "kd-tree leaf scan four at a time").
     #[inline(always)]
     fn scan_leaf(
         &self,

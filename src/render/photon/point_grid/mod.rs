@@ -28,10 +28,9 @@ use super::kdtree::{distances4, offer_k_best, within4};
 #[cfg(test)]
 mod tests;
 
-/// Cell width over the points' mean spacing. On scene 1's irradiance points (34k, k = 1,
-/// one camera lookup per pixel), 1.0 / 1.5 / 2.0 / 3.0 scan 6.3 / 10.2 / 14.8 / 27.1 points
-/// per query in 6.7 / 4.7 / 3.2 / 3.1 cells; the k = 1 render measured 95.5 / 93.3 / 92.8
-/// ms with 1.5 / 2.0 / 2.5 (three alternating rounds): 2.5, with 2.0 as good.
+/// Cell width over the points' mean spacing. Wider cells mean more points scanned per query
+/// in fewer cells; of 1.5, 2.0 and 2.5, the k = 1 render on scene 1 was fastest with 2.5,
+/// with 2.0 as good (measured: docs/performance-history.md, "point grid cell width").
 const CELL_SPACINGS: f32 = 2.5;
 
 /// A hint whose ball's box meets more cells than this (the 3x3x3 about the query's cell)

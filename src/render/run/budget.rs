@@ -1,0 +1,121 @@
+//! What a render will cost before it runs, by integrator: its peak memory, its work and the
+//! size of its result files (a server admits jobs by them), and the relative cost of its
+//! phases (one progress fraction over a whole render).
+
+use crate::render::control::{Phase, Progress};
+use crate::spec::{Integrator, RenderSpec};
+
+/// What a render needs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Needs {
+    /// An upper estimate of the render's peak memory.
+    pub memory_bytes: u64,
+    /// Work in ray-sized units: every camera sample and final-gather ray, every emitted
+    /// photon, and (for `photon`) each k-NN neighbour of the irradiance precompute, times
+    /// the passes of a progressive render. An upper guide, not a prediction of seconds: it
+    /// bounds what one render may take from a machine, whatever its parameters.
+    pub work: f64,
+    /// An upper estimate of the result files: the EXR (f32 RGBA), the PNG, and a
+    /// progressive render's saved state (the f64 sum image).
+    pub result_bytes: u64,
+}
+
+impl Needs {
+    /// The needs of `spec` at `pixels` pixels over a scene of `triangles` triangles.
+    ///
+    /// Memory: photons while traced and in their kd-trees (a global photon path stores at
+    /// most a few photons: 3 per emitted photon bounds the built-in scenes' 1.35 with
+    /// room), twice while traced (per-chunk buffers, then the map); the irradiance cache;
+    /// the film, its encodings and (progressive) the f64 sum, a pass's image and the saved
+    /// state, 48 + 48 bytes a pixel; the scene's description, primitives and BVH build,
+    /// 1,200 bytes a triangle. The per-pixel and per-triangle figures are measured on the
+    /// largest jobs the server's test limits accept (tests/server/memory.rs).
+    pub fn of(spec: &RenderSpec, pixels: u64, triangles: usize) -> Needs {
+        const PHOTON_BYTES: u64 = 32;
+        let (global, caustic) = spec
+            .photon_mapping()
+            .map_or((0, 0), |p| (p.photons * 3, p.caustic_photons));
+        let maps = (global + caustic) * PHOTON_BYTES * 2;
+        let irradiance = global / 4 * 64;
+        let progressive = spec.is_progressive() as u64;
+        let film = pixels * 48 * (1 + progressive);
+        let geometry = triangles as u64 * 1200;
+        Needs {
+            memory_bytes: maps + irradiance + film + geometry + (16 << 20),
+            work: work(spec, pixels),
+            result_bytes: pixels * 20 + progressive * pixels * 24 + (64 << 10),
+        }
+    }
+}
+
+fn work(spec: &RenderSpec, pixels: u64) -> f64 {
+    let camera =
+        |spp: u32, gather_rays: u32| pixels as f64 * spp as f64 * (1.0 + gather_rays as f64);
+    match &spec.integrator {
+        Integrator::Raytrace(r) => camera(r.spp, 0),
+        Integrator::Photon(p) => {
+            let photons = (p.photons + p.caustic_photons) as f64;
+            camera(p.spp, p.gather_rays) + photons + p.photons as f64 / 4.0 * p.k as f64
+        }
+        Integrator::Ppm(p) => {
+            let photons = (p.pass.photons + p.pass.caustic_photons) as f64;
+            (camera(p.pass.spp, p.pass.gather_rays) + photons) * p.stop.iterations as f64
+        }
+    }
+}
+
+/// One monotone-ready fraction of a whole render from the engine's per-phase progress: the
+/// phases weighted by their expected cost (photon tracing, tree building, the irradiance
+/// precompute, the camera pass), and a progressive render's passes in sequence.
+pub struct ProgressModel {
+    /// Relative cost of each phase of one pass: tracing (with scene building), building,
+    /// precompute, camera pass.
+    weights: [f64; 4],
+    /// Passes the render may run.
+    passes: f64,
+}
+
+impl ProgressModel {
+    pub fn new(spec: &RenderSpec, pixels: u64) -> ProgressModel {
+        let samples =
+            |spp: u32, gather: u32| (pixels * spp as u64) as f64 * (1.0 + 1.5 * gather as f64);
+        let (weights, passes) = match &spec.integrator {
+            Integrator::Raytrace(r) => ([0.0, 0.0, 0.0, samples(r.spp, 0) / 3e6], 1.0),
+            Integrator::Photon(p) => {
+                let photons = (p.photons + p.caustic_photons) as f64;
+                let precompute = p.photons as f64 * 0.35 * p.k as f64 / 2e7;
+                let camera = samples(p.spp, p.gather_rays) / 3e6;
+                ([photons / 3e6, photons / 1e7, precompute, camera], 1.0)
+            }
+            // A fixed-radius estimate: no irradiance precompute.
+            Integrator::Ppm(p) => {
+                let photons = (p.pass.photons + p.pass.caustic_photons) as f64;
+                let camera = samples(p.pass.spp, p.pass.gather_rays) / 3e6;
+                let passes = p.stop.iterations as f64;
+                ([photons / 3e6, photons / 1e7, 0.0, camera], passes)
+            }
+        };
+        ProgressModel { weights, passes }
+    }
+
+    /// The fraction of the render done when a phase reports `p`, given `passes_done`
+    /// (the last `Phase::Passes` report's count).
+    pub fn fraction(&self, p: Progress, passes_done: u64) -> f64 {
+        let within = if p.total > 0 {
+            p.done as f64 / p.total as f64
+        } else {
+            1.0
+        };
+        let i = match p.phase {
+            Phase::Passes => return within,
+            Phase::BuildScene | Phase::PhotonTrace => 0,
+            Phase::BuildMaps => 1,
+            Phase::Precompute => 2,
+            Phase::Render => 3,
+        };
+        let total: f64 = self.weights.iter().sum::<f64>().max(1e-12);
+        let before: f64 = self.weights[..i].iter().sum();
+        let in_pass = (before + self.weights[i] * within) / total;
+        (passes_done as f64 + in_pass) / self.passes
+    }
+}

@@ -1,0 +1,215 @@
+//! The engine's one entry point: [`run`] renders a scene as a [`RenderSpec`] says. The CLI,
+//! `sweep` and the server call it (and nothing deeper), so a new integrator is a variant of
+//! `spec::Integrator` and an arm of the `match` here (and of the cost model beside it,
+//! `budget.rs`); tests/architecture.rs checks that no other module dispatches on the
+//! integrator.
+
+mod budget;
+
+pub use budget::{Needs, ProgressModel};
+
+use std::ops::ControlFlow;
+use std::sync::Arc;
+
+use crate::render::control::{Cancelled, Control};
+use crate::render::effects::{Analysis, analyse};
+use crate::render::film::Image;
+use crate::render::oneshot::render_with_maps;
+use crate::render::outcome::{RenderError, RenderOutput};
+use crate::render::photon::{PhotonMaps, PhotonParams, build_photon_maps};
+use crate::render::ppm::{PpmRun, PpmState, render_ppm};
+use crate::render::scene::Scene;
+use crate::spec::{Integrator, RenderSpec, SpecForm};
+
+/// Where a one-shot render's photon maps come from: traced now ([`TraceNow`]), given
+/// ([`Prebuilt`]), or a cache (the server's). Progressive passes always trace their own
+/// (each pass's maps are new random numbers, used once).
+pub trait MapSource: Sync {
+    /// The maps of `scene` for `params`, and whether this call traced them.
+    fn photon_maps(
+        &self,
+        scene: &Scene,
+        params: &PhotonParams,
+        control: &Control,
+    ) -> Result<SuppliedMaps, Cancelled>;
+}
+
+/// Photon maps as a [`MapSource`] gives them.
+pub struct SuppliedMaps {
+    pub maps: Arc<PhotonMaps>,
+    /// False when the maps were traced before (the render reports no tracing time).
+    pub traced: bool,
+}
+
+/// Trace the maps now.
+pub struct TraceNow;
+
+impl MapSource for TraceNow {
+    fn photon_maps(
+        &self,
+        scene: &Scene,
+        params: &PhotonParams,
+        control: &Control,
+    ) -> Result<SuppliedMaps, Cancelled> {
+        let maps = Arc::new(build_photon_maps(scene, params, control)?);
+        Ok(SuppliedMaps { maps, traced: true })
+    }
+}
+
+/// Maps traced before (by `render::trace_maps`), used when they are the ones a render
+/// needs; other parameters are traced now.
+pub struct Prebuilt(pub Arc<PhotonMaps>);
+
+impl MapSource for Prebuilt {
+    fn photon_maps(
+        &self,
+        scene: &Scene,
+        params: &PhotonParams,
+        control: &Control,
+    ) -> Result<SuppliedMaps, Cancelled> {
+        if self.0.params == *params {
+            return Ok(SuppliedMaps {
+                maps: self.0.clone(),
+                traced: false,
+            });
+        }
+        TraceNow.photon_maps(scene, params, control)
+    }
+}
+
+/// What a render takes besides the scene, the spec and the caller's hooks.
+pub struct Inputs<'a> {
+    pub maps: &'a dyn MapSource,
+    /// An image to measure the render against (relmse, block_err, mean_ratio; a
+    /// progressive render after every pass).
+    pub reference: Option<&'a Image>,
+    /// A progressive render's saved state to continue from (the same bytes as never
+    /// stopping); refused if it is not of this scene and spec.
+    pub resume: Option<PpmState>,
+    /// Identifies the scene: its source text, or any text that changes when it does. A
+    /// progressive render's state is fingerprinted by it and the spec.
+    pub scene_key: &'a [u8],
+}
+
+impl Inputs<'_> {
+    /// Maps traced now, no reference, nothing to resume.
+    pub fn fresh() -> Inputs<'static> {
+        Inputs {
+            maps: &TraceNow,
+            reference: None,
+            resume: None,
+            scene_key: b"",
+        }
+    }
+}
+
+/// Called with the running state after every progressive pass; `Break` stops the render
+/// after that pass (to give way, or to save and exit). One-shot renders never call it.
+pub type OnPass<'a> = &'a mut dyn FnMut(&PpmState) -> ControlFlow<()>;
+
+/// Render `scene` as `spec` says.
+pub fn run(
+    scene: &Scene,
+    spec: &RenderSpec,
+    inputs: Inputs,
+    control: &Control,
+    on_pass: OnPass,
+) -> Result<RenderOutput, RenderError> {
+    spec.validate()?;
+    check_reference(scene, spec, inputs.reference)?;
+    let analysis = analyse(scene, spec);
+    match &spec.integrator {
+        Integrator::Raytrace(_) | Integrator::Photon(_) => {
+            one_shot(scene, spec, &analysis, inputs, control)
+        }
+        Integrator::Ppm(ppm) => {
+            let fingerprint = fingerprint(inputs.scene_key, spec);
+            let run = PpmRun {
+                reference: inputs.reference,
+                resume: inputs.resume,
+                fingerprint,
+            };
+            render_ppm(scene, spec, ppm, &analysis, run, control, on_pass)
+        }
+    }
+}
+
+/// [`run`] with maps traced now, no reference, no state and no per-pass hook.
+pub fn render(
+    scene: &Scene,
+    spec: &RenderSpec,
+    control: &Control,
+) -> Result<RenderOutput, RenderError> {
+    run(scene, spec, Inputs::fresh(), control, &mut |_| {
+        ControlFlow::Continue(())
+    })
+}
+
+/// Photon maps (when the integrator reads any) and one camera pass over them.
+fn one_shot(
+    scene: &Scene,
+    spec: &RenderSpec,
+    analysis: &Analysis,
+    inputs: Inputs,
+    control: &Control,
+) -> Result<RenderOutput, RenderError> {
+    if inputs.resume.is_some() {
+        return Err(RenderError::Input(format!(
+            "a saved state continues only a progressive render ({})",
+            crate::spec::progressive_names()
+        )));
+    }
+    let pp = &analysis.photon_params;
+    let supplied = if pp.global_photons + pp.caustic_photons == 0 {
+        SuppliedMaps {
+            maps: Arc::new(PhotonMaps::none(pp.clone())),
+            traced: true,
+        }
+    } else {
+        inputs.maps.photon_maps(scene, pp, control)?
+    };
+    let mut out = render_with_maps(scene, &supplied.maps, spec, analysis, control)?;
+    if !supplied.traced {
+        out.stats.maps_were_reused();
+    }
+    out.measure(inputs.reference)
+        .map_err(|e| RenderError::Input(format!("the reference: {e}")))?;
+    Ok(out)
+}
+
+/// A reference must have the output's size: refused before anything is rendered.
+fn check_reference(
+    scene: &Scene,
+    spec: &RenderSpec,
+    reference: Option<&Image>,
+) -> Result<(), RenderError> {
+    let (w, h) = spec.resolution((scene.camera.width, scene.camera.height));
+    if let Some(r) = reference
+        && (r.width, r.height) != (w, h)
+    {
+        return Err(RenderError::Input(format!(
+            "the reference is {}x{}, the image {w}x{h}: render at the reference's size",
+            r.width, r.height
+        )));
+    }
+    let needs_reference = spec.stop().is_some_and(|s| s.target_error.is_some());
+    if needs_reference && reference.is_none() {
+        return Err(RenderError::Input(
+            "target_error needs a reference to measure the error against".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// A stable identity of a scene (`scene_key`) and of what in the spec shapes the image
+/// (all but when to stop): a progressive state resumes only a render with the same one.
+pub fn fingerprint(scene_key: &[u8], spec: &RenderSpec) -> String {
+    let mut form = SpecForm::of(spec);
+    (form.iterations, form.time_limit, form.target_error) = (None, None, None);
+    let text = serde_json::to_string(&form).unwrap_or_default();
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for b in scene_key.iter().chain(text.as_bytes()) {
+        h = (h ^ *b as u64).wrapping_mul(0x0100_0000_01b3);
+    }
+    format!("{h:016x}")
+}

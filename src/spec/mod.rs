@@ -1,0 +1,332 @@
+//! The render spec: everything a render job asks for besides its scene, as one typed value
+//! that every front end converts into and the engine takes as given (`render::run`).
+//!
+//! - [`RenderSpec`]: what is common to every render (resolution, seed, depth, effects) and
+//!   the [`Integrator`] with its own settings. A closed set: the variants are named here, and
+//!   the engine's entry point (`render/run/`) is the one place that dispatches on them.
+//! - [`SpecForm`] (`form.rs`): the same spec as flat, optional fields: the REST API's
+//!   `params` object (serde, with its OpenAPI schema), the CLI's flags (clap), and the form
+//!   a job's spec is stored in. One conversion each way ([`SpecForm::to_spec`],
+//!   [`SpecForm::of`]); defaults, names, ranges and validation exist once, in this module
+//!   (`rules.rs`), and every error names its field, which each front end spells its own way
+//!   (`params.k`, `--k`).
+//! - `describe.rs`: the defaults as text for the CLI's help and the API's schema, derived
+//!   from the defaults here, never written twice.
+//!
+//! **Architecture invariant:** this module depends on nothing else in the crate: the engine,
+//! the server and the CLI depend on it.
+
+mod describe;
+mod form;
+mod rules;
+
+pub use describe::{default_text, defaults_by_integrator};
+pub use form::{EffectsForm, IntegratorName, SpecForm, StoreName};
+pub use rules::{MAX_IMAGE_SIDE, MAX_PHOTONS, RULES, Range, Rule, Scope};
+
+/// The integrator references are rendered with when none is given (`sweep`): progressive
+/// photon mapping converges to the scene's true image however hard its caustics are.
+pub const REFERENCE_INTEGRATOR: IntegratorName = IntegratorName::Ppm;
+
+/// The version of the spec's stored and REST form; a form with another version is refused.
+pub const SPEC_VERSION: u32 = 1;
+
+/// Everything a render asks for besides its scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSpec {
+    /// Resolution override (else the scene camera's).
+    pub width: Option<u32>,
+    pub height: Option<u32>,
+    pub seed: u64,
+    /// Longest path (surface interactions) for photons and camera rays.
+    pub max_depth: u32,
+    /// Effects the job switched off (to see their contribution, or to save time).
+    pub effects: EffectSwitches,
+    pub integrator: Integrator,
+}
+
+/// The closed set of integrators, each with the settings only it reads.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Integrator {
+    /// Direct light by shadow rays and perfect specular chains; no photon maps.
+    Raytrace(Raytrace),
+    /// Jensen-style photon mapping with global and caustic maps (Jensen 1996, 2001).
+    Photon(PhotonMapping),
+    /// Progressive photon mapping (Knaus and Zwicker 2011): independent passes of photon
+    /// mapping with fixed-radius estimates whose radius shrinks, averaged.
+    Ppm(Progressive),
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Raytrace {
+    /// Jittered samples per pixel (box filter).
+    pub spp: u32,
+}
+
+/// The settings of one photon-mapping render (of one pass, for `ppm`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PhotonMapping {
+    /// Photons emitted for the global map.
+    pub photons: u64,
+    /// Photons emitted for the caustic map.
+    pub caustic_photons: u64,
+    /// Photons per radiance estimate (`ppm`: sets the automatic initial radius).
+    pub k: usize,
+    pub photon_store: PhotonStore,
+    /// Final-gather rays per camera sample at the first diffuse point; 0 reads the global map.
+    pub gather_rays: u32,
+    /// Jittered samples per pixel (box filter).
+    pub spp: u32,
+    /// Aim caustic photons at the specular objects; false emits them in every direction, as
+    /// the seed did (its timing tables are measured that way).
+    pub aim_caustics: bool,
+}
+
+/// Progressive photon mapping: per-pass settings, the radius schedule and when to stop.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Progressive {
+    pub pass: PhotonMapping,
+    /// Radius reduction, r_{i+1}^2 = r_i^2 (i + alpha) / (i + 1), in (0, 1).
+    pub alpha: f64,
+    /// Initial radius of both maps' estimates (scene units); `None`: from the k-NN radius of
+    /// the first pass's photons.
+    pub radius: Option<f32>,
+    pub stop: Stop,
+}
+
+/// When a progressive render stops: the first condition met wins; at least one pass runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stop {
+    /// Passes in all (counting those of a resumed state).
+    pub iterations: u32,
+    /// Seconds of passes in all: no pass starts that would, at the mean pass time so far,
+    /// end after this.
+    pub time_limit: Option<f64>,
+    /// Stop once `relmse` against the reference is at most this.
+    pub target_error: Option<f64>,
+}
+
+impl Stop {
+    /// Stop after `iterations` passes, and on nothing else.
+    pub fn after(iterations: u32) -> Stop {
+        Stop {
+            iterations,
+            time_limit: None,
+            target_error: None,
+        }
+    }
+}
+
+/// Which first-hit photons the global map keeps (the seed's tri-state).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum PhotonStore {
+    /// No first-hit photons: direct light comes from shadow rays.
+    Indirect,
+    /// Every non-specular hit: direct light from the maps too.
+    All,
+    /// Only first-hit photons: the photon-map view of direct light.
+    DirectOnly,
+}
+
+/// Effects a job may switch off, each for what the camera sees: at the first non-specular
+/// point of a camera path and at points seen through a glossy reflection. Light that
+/// reaches those points by other paths (direct light at a final-gather hit is indirect
+/// light at the point gathering) stays with the effect it belongs to there.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct EffectSwitches {
+    pub direct_light: bool,
+    /// Caustics from the caustic map; off, no caustic photon is traced.
+    pub caustics: bool,
+    /// Light from other diffuse surfaces (global map, final gathering).
+    pub diffuse_interreflection: bool,
+}
+
+impl EffectSwitches {
+    pub const ALL_ON: EffectSwitches = EffectSwitches {
+        direct_light: true,
+        caustics: true,
+        diffuse_interreflection: true,
+    };
+}
+
+/// A spec's field out of range or not for its integrator: the field as the REST form names
+/// it (snake_case; the CLI's flag is `--` and the name with dashes) and what is wrong.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{field}: {message}")]
+pub struct SpecError {
+    pub field: &'static str,
+    pub message: String,
+}
+
+impl SpecError {
+    pub fn new(field: &'static str, message: impl Into<String>) -> SpecError {
+        SpecError {
+            field,
+            message: message.into(),
+        }
+    }
+
+    /// The error in the REST API's words: the JSON path under `prefix` (e.g. `params`).
+    pub fn json_path(&self, prefix: &str) -> String {
+        format!("{prefix}.{}", self.field)
+    }
+
+    /// The error in the CLI's words: `--flag-name message`.
+    pub fn as_flag(&self) -> String {
+        format!("--{} {}", self.field.replace('_', "-"), self.message)
+    }
+}
+
+/// The defaults of each integrator: the one place they are written.
+impl PhotonMapping {
+    /// `photon`'s defaults.
+    pub const PHOTON: PhotonMapping = PhotonMapping {
+        photons: 200_000,
+        caustic_photons: 200_000,
+        k: 50,
+        photon_store: PhotonStore::Indirect,
+        gather_rays: 8,
+        spp: 4,
+        aim_caustics: true,
+    };
+
+    /// A `ppm` pass's defaults: one sample per pixel and no final gathering (the passes
+    /// average both out), fewer photons a pass, and a small k, which only sets the initial
+    /// radius: a small k starts with little blur and the passes average its noise away
+    /// (k = 10 against 50: block_err 0.014 against 0.020 after 64 passes on the caustic
+    /// scene; docs/accuracy.md).
+    pub const PPM_PASS: PhotonMapping = PhotonMapping {
+        photons: 100_000,
+        caustic_photons: 100_000,
+        k: 10,
+        gather_rays: 0,
+        spp: 1,
+        ..PhotonMapping::PHOTON
+    };
+}
+
+impl Raytrace {
+    pub const DEFAULT: Raytrace = Raytrace { spp: 4 };
+}
+
+impl Progressive {
+    pub const DEFAULT: Progressive = Progressive {
+        pass: PhotonMapping::PPM_PASS,
+        alpha: 0.7,
+        radius: None,
+        stop: Stop {
+            iterations: 16,
+            time_limit: None,
+            target_error: None,
+        },
+    };
+}
+
+impl Integrator {
+    /// Every integrator with its defaults, the default one (`photon`) first.
+    pub const ALL: [Integrator; 3] = [
+        Integrator::Photon(PhotonMapping::PHOTON),
+        Integrator::Raytrace(Raytrace::DEFAULT),
+        Integrator::Ppm(Progressive::DEFAULT),
+    ];
+
+    /// The name the REST form and the CLI use.
+    pub fn name(&self) -> IntegratorName {
+        match self {
+            Integrator::Raytrace(_) => IntegratorName::Raytrace,
+            Integrator::Photon(_) => IntegratorName::Photon,
+            Integrator::Ppm(_) => IntegratorName::Ppm,
+        }
+    }
+
+    /// The integrator of this name, with its defaults.
+    pub fn default_of(name: IntegratorName) -> Integrator {
+        Integrator::ALL
+            .into_iter()
+            .find(|i| i.name() == name)
+            .expect("every name has an integrator")
+    }
+}
+
+impl RenderSpec {
+    /// The spec of an integrator with every other setting at its default.
+    pub fn new(integrator: Integrator) -> RenderSpec {
+        RenderSpec {
+            width: None,
+            height: None,
+            seed: 1,
+            max_depth: 32,
+            effects: EffectSwitches::ALL_ON,
+            integrator,
+        }
+    }
+
+    /// `photon` with its defaults: what a job that names nothing renders.
+    pub fn photon(p: PhotonMapping) -> RenderSpec {
+        RenderSpec::new(Integrator::Photon(p))
+    }
+
+    /// `ppm` with its defaults but for these.
+    pub fn ppm(p: Progressive) -> RenderSpec {
+        RenderSpec::new(Integrator::Ppm(p))
+    }
+
+    pub fn raytrace(spp: u32) -> RenderSpec {
+        RenderSpec::new(Integrator::Raytrace(Raytrace { spp }))
+    }
+
+    /// The photon-mapping settings a render (or each of its passes) uses; None for
+    /// integrators that trace no photons.
+    pub fn photon_mapping(&self) -> Option<&PhotonMapping> {
+        match &self.integrator {
+            Integrator::Raytrace(_) => None,
+            Integrator::Photon(p) => Some(p),
+            Integrator::Ppm(p) => Some(&p.pass),
+        }
+    }
+
+    /// Samples per pixel (per pass, for a progressive integrator).
+    pub fn spp(&self) -> u32 {
+        match &self.integrator {
+            Integrator::Raytrace(r) => r.spp,
+            Integrator::Photon(p) => p.spp,
+            Integrator::Ppm(p) => p.pass.spp,
+        }
+    }
+
+    /// The stop conditions of a progressive integrator (None: one pass, one image).
+    pub fn stop(&self) -> Option<&Stop> {
+        match &self.integrator {
+            Integrator::Raytrace(_) | Integrator::Photon(_) => None,
+            Integrator::Ppm(p) => Some(&p.stop),
+        }
+    }
+
+    pub fn is_progressive(&self) -> bool {
+        self.stop().is_some()
+    }
+
+    /// The output size: the override, else the scene camera's (`camera`).
+    pub fn resolution(&self, camera: (u32, u32)) -> (u32, u32) {
+        (
+            self.width.unwrap_or(camera.0),
+            self.height.unwrap_or(camera.1),
+        )
+    }
+
+    /// Check every field's range (a spec made in code rather than from a form).
+    pub fn validate(&self) -> Result<(), SpecError> {
+        let has_reference = true; // the reference is the caller's: checked where it is given
+        SpecForm::of(self).to_spec(has_reference).map(|_| ())
+    }
+}
+
+/// The names of the progressive integrators, for messages about what only they take.
+pub fn progressive_names() -> String {
+    let names: Vec<&str> = Integrator::ALL
+        .iter()
+        .filter(|i| RenderSpec::new((*i).clone()).is_progressive())
+        .map(|i| i.name().as_str())
+        .collect();
+    names.join(", ")
+}
