@@ -24,6 +24,16 @@ if [ ${#packages[@]} -gt 0 ] || ! command -v geckodriver >/dev/null; then
   if [ ${#packages[@]} -gt 0 ]; then apt_get install -y -q "${packages[@]}"; fi
   if ! command -v geckodriver >/dev/null; then cargo install geckodriver --locked; fi
 fi
+# The API tests run schemathesis (PyPI) against a live server: into a virtual environment of
+# its own, once per machine (pinned: its checks are what the test asserts).
+st_venv="${PHOTONBOX_VENV:-$HOME/.cache/photonbox/venv}"
+if [ ! -x "$st_venv/bin/st" ]; then
+  echo "tests/run.sh: installing schemathesis into $st_venv" >&2
+  python3 -m venv "$st_venv"
+  "$st_venv/bin/pip" install -q "schemathesis==4.32.5"
+fi
+export PHOTONBOX_SCHEMATHESIS="$st_venv/bin/st"
+"$PHOTONBOX_SCHEMATHESIS" --version
 # Whole output (a `| head` would close the pipe early: geckodriver then panics on EPIPE and
 # pipefail fails the run).
 geckodriver --version
