@@ -7,7 +7,7 @@
 //! "tracing" is photon tracing plus kd-tree building; "render" is the camera pass plus the
 //! irradiance precomputation it needs (both depend on k).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Parser;
@@ -123,23 +123,41 @@ fn main() {
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json")
     });
     let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let threads = rayon::current_num_threads();
+    seed_table(&scene, &path, args.runs, args.only_n, args.only_k);
+
+    if !args.no_ppm {
+        // Blind caustic photons are the seed's workload; aimed ones the default since issue 5.
+        ppm_pass(&scene, args.runs, false);
+        ppm_pass(&scene, args.runs, true);
+    }
+    if !args.no_effects {
+        effects_cost(args.runs);
+    }
+    if !args.no_throughput {
+        photon_throughput(&scene, args.runs);
+    }
+}
+
+/// The seed's table (its rows, or those with n `only_n` and k `only_k`), each row measured
+/// beside the seed's figure and the ratio.
+fn seed_table(scene: &Scene, path: &Path, runs: usize, only_n: Option<u64>, only_k: Option<usize>) {
     println!("Host: {}.", host_cpu());
+    let threads = rayon::current_num_threads();
     println!(
         "Scene {}, 512x512, 1 spp, photon store indirect, no final gathering, global and caustic maps of n \
          emitted photons each; {threads} threads; median of {} runs.\n",
         path.file_name().unwrap().to_string_lossy(),
-        args.runs
+        runs
     );
     println!(
         "| n | k | seed tracing | tracing (trace + build) | x | seed render | render (precompute + camera) | x | stored global / caustic |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     for (n, k, seed_tracing, seed_render) in SEED {
-        if args.only_n.is_some_and(|x| x != n) || args.only_k.is_some_and(|x| x != k) {
+        if only_n.is_some_and(|x| x != n) || only_k.is_some_and(|x| x != k) {
             continue;
         }
-        let r = measure(&scene, n, k, args.runs);
+        let r = measure(scene, n, k, runs);
         let render = r.precompute + r.camera;
         let tracing = match seed_tracing {
             Some(s) => format!(
@@ -163,19 +181,10 @@ fn main() {
             r.caustic_stored,
         );
     }
+}
 
-    if !args.no_ppm {
-        // Blind caustic photons are the seed's workload; aimed ones the default since issue 5.
-        ppm_pass(&scene, args.runs, false);
-        ppm_pass(&scene, args.runs, true);
-    }
-    if !args.no_effects {
-        effects_cost(args.runs);
-    }
-    // Throughput: emitted photons per second, and a 1M-photon kd-tree build.
-    if args.no_throughput {
-        return;
-    }
+/// Throughput: emitted photons per second, and a 1M-photon kd-tree build.
+fn photon_throughput(scene: &Scene, runs: usize) {
     println!();
     for (label, global, caustic, aim) in [
         ("global map", 1_000_000u64, 0u64, false),
@@ -200,8 +209,8 @@ fn main() {
         let mut rates = vec![];
         let mut builds = vec![];
         let mut stored = 0;
-        for _ in 0..args.runs {
-            let maps = build_photon_maps(&scene, &params, &Control::none()).expect("not cancelled");
+        for _ in 0..runs {
+            let maps = build_photon_maps(scene, &params, &Control::none()).expect("not cancelled");
             rates.push((global + caustic) as f64 / maps.trace_seconds);
             builds.push(maps.build_seconds);
             stored = maps.global.as_ref().map_or(0, |m| m.len())

@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use anyhow::anyhow;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 /// One line of a plot: (x, y) points, drawn in order.
@@ -36,6 +37,14 @@ pub fn loglog_fit(points: &[(f64, f64)]) -> Option<(f64, f64)> {
     Some((b, my - b * mx))
 }
 
+/// The chart `loglog_svg` draws on: log10 values on linear axes.
+type LogChart<'a, 'b> =
+    ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+fn positive(v: f64) -> bool {
+    v > 0.0 && v.is_finite()
+}
+
 /// A log-log line plot of `series` to an SVG file.
 pub fn loglog_svg(
     path: &Path,
@@ -44,7 +53,6 @@ pub fn loglog_svg(
     y_label: &str,
     series: &[Series],
 ) -> anyhow::Result<()> {
-    let positive = |v: f64| v > 0.0 && v.is_finite();
     let all: Vec<(f64, f64)> = series
         .iter()
         .flat_map(|s| s.points.iter().copied())
@@ -55,15 +63,8 @@ pub fn loglog_svg(
     }
     // Plotted as log10 values on linear axes, labelled with the values themselves: ticks
     // then fall evenly inside any range, not only at whole decades.
-    let range = |f: fn(&(f64, f64)) -> f64| {
-        let lo = all.iter().map(f).fold(f64::INFINITY, f64::min).log10();
-        let hi = all.iter().map(f).fold(f64::NEG_INFINITY, f64::max).log10();
-        let pad = ((hi - lo) * 0.06).max(0.05);
-        (lo - pad, hi + pad)
-    };
-    let (x0, x1) = range(|p| p.0);
-    let (y0, y1) = range(|p| p.1);
-    let log = |(x, y): (f64, f64)| (x.log10(), y.log10());
+    let (x0, x1) = log_range(&all, |p| p.0);
+    let (y0, y1) = log_range(&all, |p| p.1);
     let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
     let draw = |e: &dyn std::fmt::Display| anyhow!("{}: {e}", path.display());
     root.fill(&WHITE).map_err(|e| draw(&e))?;
@@ -85,32 +86,7 @@ pub fn loglog_svg(
         .draw()
         .map_err(|e| draw(&e))?;
     for (i, s) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        let pts: Vec<(f64, f64)> = s
-            .points
-            .iter()
-            .copied()
-            .filter(|&(x, y)| positive(x) && positive(y))
-            .map(log)
-            .collect();
-        chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
-            .map_err(|e| draw(&e))?
-            .label(s.label.clone())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
-        chart
-            .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
-            .map_err(|e| draw(&e))?;
-        let font = ("sans-serif", 13).into_font().color(&color);
-        chart
-            .draw_series(
-                pts.iter()
-                    .zip(&s.point_labels)
-                    .map(|(&p, l)| Text::new(l.clone(), p, font.clone())),
-            )
-            .map_err(|e| draw(&e))?;
+        plot_series(&mut chart, i, s, &draw)?;
     }
     chart
         .configure_series_labels()
@@ -120,6 +96,50 @@ pub fn loglog_svg(
         .draw()
         .map_err(|e| draw(&e))?;
     root.present().map_err(|e| draw(&e))?;
+    Ok(())
+}
+
+/// The log10 range of one coordinate of `all`, padded by 6% (at least 0.05) each side.
+fn log_range(all: &[(f64, f64)], f: fn(&(f64, f64)) -> f64) -> (f64, f64) {
+    let lo = all.iter().map(f).fold(f64::INFINITY, f64::min).log10();
+    let hi = all.iter().map(f).fold(f64::NEG_INFINITY, f64::max).log10();
+    let pad = ((hi - lo) * 0.06).max(0.05);
+    (lo - pad, hi + pad)
+}
+
+/// Series `i` of a plot in its palette colour: the line with its legend entry, a dot and
+/// the point's label at each point.
+fn plot_series(
+    chart: &mut LogChart,
+    i: usize,
+    s: &Series,
+    draw: &dyn Fn(&dyn std::fmt::Display) -> anyhow::Error,
+) -> anyhow::Result<()> {
+    let log = |(x, y): (f64, f64)| (x.log10(), y.log10());
+    let color = Palette99::pick(i).to_rgba();
+    let pts: Vec<(f64, f64)> = s
+        .points
+        .iter()
+        .copied()
+        .filter(|&(x, y)| positive(x) && positive(y))
+        .map(log)
+        .collect();
+    chart
+        .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+        .map_err(|e| draw(&e))?
+        .label(s.label.clone())
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
+    chart
+        .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
+        .map_err(|e| draw(&e))?;
+    let font = ("sans-serif", 13).into_font().color(&color);
+    chart
+        .draw_series(
+            pts.iter()
+                .zip(&s.point_labels)
+                .map(|(&p, l)| Text::new(l.clone(), p, font.clone())),
+        )
+        .map_err(|e| draw(&e))?;
     Ok(())
 }
 

@@ -133,51 +133,7 @@ pub fn write_plots(dir: &Path, axes: &[Axis], rows: &[Row]) -> anyhow::Result<()
             continue;
         }
         for metric in ["relmse", "block_err"] {
-            let mut groups: Vec<(Vec<usize>, Series)> = Vec::new();
-            for r in rows {
-                let mut others = r.choice.clone();
-                others.remove(ai);
-                let y = if metric == "relmse" {
-                    r.error().relmse
-                } else {
-                    r.error().block_err
-                };
-                let point = (r.out.stats.times.total, y);
-                let value = axis.values[r.choice[ai]].clone();
-                match groups.iter_mut().find(|(o, _)| *o == others) {
-                    Some((_, s)) => {
-                        s.points.push(point);
-                        s.point_labels.push(value);
-                    }
-                    None => {
-                        let mut label: Vec<String> = axes
-                            .iter()
-                            .enumerate()
-                            .filter(|(j, _)| *j != ai)
-                            .map(|(j, x)| format!("{}={}", x.name, x.values[r.choice[j]]))
-                            .collect();
-                        if label.is_empty() {
-                            label.push("all".into());
-                        }
-                        let label = format!(
-                            "{} ({} {}..{})",
-                            label.join(" "),
-                            axis.name,
-                            axis.values[0],
-                            axis.values.last().unwrap()
-                        );
-                        groups.push((
-                            others,
-                            Series {
-                                label,
-                                points: vec![point],
-                                point_labels: vec![value],
-                            },
-                        ));
-                    }
-                }
-            }
-            let series: Vec<Series> = groups.into_iter().map(|(_, s)| s).collect();
+            let series = series_against_time(axes, ai, metric, rows);
             let path = dir.join(format!("{metric}_vs_time_by_{}.svg", axis.name));
             let title = format!("{metric} against render time, varying {}", axis.name);
             loglog_svg(&path, &title, "seconds", metric, &series)?;
@@ -187,28 +143,7 @@ pub fn write_plots(dir: &Path, axes: &[Axis], rows: &[Row]) -> anyhow::Result<()
     let ppm_series: Vec<Series> = rows
         .iter()
         .filter(|r| r.passes().len() >= 2)
-        .map(|r| {
-            let points: Vec<(f64, f64)> = r
-                .passes()
-                .iter()
-                .filter_map(|h| h.error.map(|e| (h.pass as f64, e.relmse)))
-                .collect();
-            // The slope past the first passes' transient, as docs/accuracy.md reports it.
-            let from = if points.len() >= 8 { FIT_FROM_PASS } else { 1 };
-            let tail: Vec<(f64, f64)> = points
-                .iter()
-                .copied()
-                .filter(|p| p.0 >= from as f64)
-                .collect();
-            let slope = loglog_fit(&tail).map_or(String::new(), |(b, _)| {
-                format!(" slope {b:.2} (passes >= {from})")
-            });
-            Series {
-                label: format!("{}{slope}", describe_choice(axes, &r.choice)),
-                points,
-                point_labels: Vec::new(),
-            }
-        })
+        .map(|r| ppm_pass_series(axes, r))
         .collect();
     if !ppm_series.is_empty() {
         let path = dir.join("ppm_relmse_per_pass.svg");
@@ -221,4 +156,86 @@ pub fn write_plots(dir: &Path, axes: &[Axis], rows: &[Row]) -> anyhow::Result<()
         )?;
     }
     Ok(())
+}
+
+/// `metric` against total time as axis `ai` varies: one series per choice of the other
+/// axes, in the order of their first row, each point labelled with axis `ai`'s value.
+fn series_against_time(axes: &[Axis], ai: usize, metric: &str, rows: &[Row]) -> Vec<Series> {
+    let axis = &axes[ai];
+    let mut groups: Vec<(Vec<usize>, Series)> = Vec::new();
+    for r in rows {
+        let mut others = r.choice.clone();
+        others.remove(ai);
+        let y = if metric == "relmse" {
+            r.error().relmse
+        } else {
+            r.error().block_err
+        };
+        let point = (r.out.stats.times.total, y);
+        let value = axis.values[r.choice[ai]].clone();
+        match groups.iter_mut().find(|(o, _)| *o == others) {
+            Some((_, s)) => {
+                s.points.push(point);
+                s.point_labels.push(value);
+            }
+            None => {
+                let label = series_label(axes, ai, &r.choice);
+                groups.push((
+                    others,
+                    Series {
+                        label,
+                        points: vec![point],
+                        point_labels: vec![value],
+                    },
+                ));
+            }
+        }
+    }
+    groups.into_iter().map(|(_, s)| s).collect()
+}
+
+/// The legend of a series along axis `ai`: the other axes' values in `choice` ("all" if
+/// there are none), then the range axis `ai` runs over.
+fn series_label(axes: &[Axis], ai: usize, choice: &[usize]) -> String {
+    let axis = &axes[ai];
+    let mut label: Vec<String> = axes
+        .iter()
+        .enumerate()
+        .filter(|(j, _)| *j != ai)
+        .map(|(j, x)| format!("{}={}", x.name, x.values[choice[j]]))
+        .collect();
+    if label.is_empty() {
+        label.push("all".into());
+    }
+    format!(
+        "{} ({} {}..{})",
+        label.join(" "),
+        axis.name,
+        axis.values[0],
+        axis.values.last().unwrap()
+    )
+}
+
+/// One ppm row's relmse against pass, labelled with its combination and fitted slope.
+fn ppm_pass_series(axes: &[Axis], r: &Row) -> Series {
+    let points: Vec<(f64, f64)> = r
+        .passes()
+        .iter()
+        .filter_map(|h| h.error.map(|e| (h.pass as f64, e.relmse)))
+        .collect();
+    // The slope past the first passes' transient, as docs/accuracy.md reports it.
+    let from = if points.len() >= 8 { FIT_FROM_PASS } else { 1 };
+    let tail: Vec<(f64, f64)> = points
+        .iter()
+        .copied()
+        .filter(|p| p.0 >= from as f64)
+        .collect();
+    let slope = loglog_fit(&tail).map_or(String::new(), |(b, _)| {
+        format!(" slope {b:.2} (passes >= {from})")
+    });
+    Series {
+        label: format!("{}{slope}", describe_choice(axes, &r.choice)),
+        points,
+        point_labels: Vec::new(),
+    }
 }

@@ -228,79 +228,109 @@ impl Material {
         mode: Transport,
     ) -> Option<BsdfSample> {
         match *self {
-            Material::Diffuse { albedo } => {
-                if albedo == Rgb::ZERO {
-                    return None;
-                }
-                let nf = if wo.dot(n) < 0.0 { -n } else { n };
-                let wi = Frame::from_normal(nf).to_world(cosine_hemisphere(u));
-                let cos = wi.dot(nf);
-                (cos > 0.0).then_some(BsdfSample {
-                    wi,
-                    weight: albedo,
-                    pdf: cosine_hemisphere_pdf(cos),
-                    specular: false,
-                })
-            }
+            Material::Diffuse { albedo } => Self::sample_diffuse(albedo, wo, n, u),
             Material::Mirror { .. } | Material::Dielectric { .. } => {
-                let b = self.specular_branches(wo, n, mode);
-                let pr = b.reflection.map_or(0.0, |r| r.weight.x.min(1.0));
-                let pick_reflection = match (b.reflection, b.transmission) {
-                    (Some(_), None) => true,
-                    (None, Some(_)) => false,
-                    (Some(_), Some(_)) => u_lobe < pr,
-                    (None, None) => return None,
-                };
-                let (branch, p) = if pick_reflection {
-                    (
-                        b.reflection?,
-                        if b.transmission.is_some() { pr } else { 1.0 },
-                    )
-                } else {
-                    (
-                        b.transmission?,
-                        if b.reflection.is_some() {
-                            1.0 - pr
-                        } else {
-                            1.0
-                        },
-                    )
-                };
-                Some(BsdfSample {
-                    wi: branch.wi,
-                    weight: branch.weight / p,
-                    pdf: 0.0,
-                    specular: true,
-                })
+                self.sample_specular(wo, n, u_lobe, mode)
             }
             Material::Phong {
                 diffuse,
                 specular,
                 exponent,
             } => {
-                let nf = if wo.dot(n) < 0.0 { -n } else { n };
                 let ps = Self::phong_specular_probability(diffuse, specular);
-                let wi = if u_lobe < ps {
-                    Frame::from_normal(reflect(wo, nf)).to_world(power_cosine(u, exponent))
-                } else {
-                    Frame::from_normal(nf).to_world(cosine_hemisphere(u))
-                };
-                let cos = wi.dot(nf);
-                if cos <= 0.0 {
-                    return None;
-                }
-                let pdf = self.pdf(wo, wi, n);
-                if !(pdf > 0.0) {
-                    return None;
-                }
-                Some(BsdfSample {
-                    wi,
-                    weight: self.eval(wo, wi, n) * (cos / pdf),
-                    pdf,
-                    specular: false,
-                })
+                self.sample_phong(ps, exponent, wo, n, u_lobe, u)
             }
         }
+    }
+
+    /// [`Material::sample`] of a Lambertian surface: cosine-weighted about the normal on
+    /// wo's side.
+    fn sample_diffuse(albedo: Rgb, wo: Vec3A, n: Vec3A, u: Vec2) -> Option<BsdfSample> {
+        if albedo == Rgb::ZERO {
+            return None;
+        }
+        let nf = if wo.dot(n) < 0.0 { -n } else { n };
+        let wi = Frame::from_normal(nf).to_world(cosine_hemisphere(u));
+        let cos = wi.dot(nf);
+        (cos > 0.0).then_some(BsdfSample {
+            wi,
+            weight: albedo,
+            pdf: cosine_hemisphere_pdf(cos),
+            specular: false,
+        })
+    }
+
+    /// [`Material::sample`] of mirror and glass: one of the [`Material::specular_branches`],
+    /// reflection picked with probability F when both exist, the weight divided by that.
+    fn sample_specular(
+        &self,
+        wo: Vec3A,
+        n: Vec3A,
+        u_lobe: f32,
+        mode: Transport,
+    ) -> Option<BsdfSample> {
+        let b = self.specular_branches(wo, n, mode);
+        let pr = b.reflection.map_or(0.0, |r| r.weight.x.min(1.0));
+        let pick_reflection = match (b.reflection, b.transmission) {
+            (Some(_), None) => true,
+            (None, Some(_)) => false,
+            (Some(_), Some(_)) => u_lobe < pr,
+            (None, None) => return None,
+        };
+        let (branch, p) = if pick_reflection {
+            (
+                b.reflection?,
+                if b.transmission.is_some() { pr } else { 1.0 },
+            )
+        } else {
+            (
+                b.transmission?,
+                if b.reflection.is_some() {
+                    1.0 - pr
+                } else {
+                    1.0
+                },
+            )
+        };
+        Some(BsdfSample {
+            wi: branch.wi,
+            weight: branch.weight / p,
+            pdf: 0.0,
+            specular: true,
+        })
+    }
+
+    /// [`Material::sample`] of Phong: the glossy lobe about the mirror direction (with
+    /// probability `ps`) or the diffuse one, weighted by f cos / pdf of the mixture.
+    fn sample_phong(
+        &self,
+        ps: f32,
+        exponent: f32,
+        wo: Vec3A,
+        n: Vec3A,
+        u_lobe: f32,
+        u: Vec2,
+    ) -> Option<BsdfSample> {
+        let nf = if wo.dot(n) < 0.0 { -n } else { n };
+        let wi = if u_lobe < ps {
+            Frame::from_normal(reflect(wo, nf)).to_world(power_cosine(u, exponent))
+        } else {
+            Frame::from_normal(nf).to_world(cosine_hemisphere(u))
+        };
+        let cos = wi.dot(nf);
+        if cos <= 0.0 {
+            return None;
+        }
+        let pdf = self.pdf(wo, wi, n);
+        if !(pdf > 0.0) {
+            return None;
+        }
+        Some(BsdfSample {
+            wi,
+            weight: self.eval(wo, wi, n) * (cos / pdf),
+            pdf,
+            specular: false,
+        })
     }
 }
 

@@ -52,6 +52,75 @@ fn ids_f32(id: &[PrimId; 4]) -> Vec4 {
     Vec4::from_array(id.map(|i| if i == NO_PRIM { -1.0 } else { i as f32 }))
 }
 
+impl Quads4 {
+    /// Up to four quads in lanes, the rest padding.
+    fn pack(ch: &[(PrimId, Shape)]) -> Quads4 {
+        let mut id = [NO_PRIM; 4];
+        // Padding: a plane with zero normal never yields a finite positive t.
+        let (mut corner, mut n, mut su, mut sv) = (
+            [Vec3A::ZERO; 4],
+            [Vec3A::ZERO; 4],
+            [Vec3A::ZERO; 4],
+            [Vec3A::ZERO; 4],
+        );
+        let mut plane = [0.0f32; 4];
+        for (l, (pid, s)) in ch.iter().enumerate() {
+            if let Shape::Quad {
+                corner: c,
+                n: nn,
+                su: a,
+                sv: b,
+                plane: p,
+                ..
+            } = *s
+            {
+                id[l] = *pid;
+                (corner[l], n[l], su[l], sv[l], plane[l]) = (c, nn, a, b, p);
+            }
+        }
+        Quads4 {
+            id,
+            lanes: QuadLanes {
+                idf: ids_f32(&id),
+                corner: lanes(corner),
+                n: lanes(n),
+                su: lanes(su),
+                sv: lanes(sv),
+                plane: Vec4::from_array(plane),
+            },
+        }
+    }
+}
+
+impl Spheres4 {
+    /// Up to four spheres in lanes, the rest padding.
+    fn pack(ch: &[(PrimId, Shape)]) -> Spheres4 {
+        let mut id = [NO_PRIM; 4];
+        let mut center = [Vec3A::ZERO; 4];
+        // Padding: radius 0 is never hit (the discriminant test is strict).
+        let mut radius = [0.0f32; 4];
+        for (l, (pid, s)) in ch.iter().enumerate() {
+            if let Shape::Sphere {
+                center: c,
+                radius: r,
+            } = *s
+            {
+                id[l] = *pid;
+                center[l] = c;
+                radius[l] = r;
+            }
+        }
+        Spheres4 {
+            id,
+            lanes: SphereLanes {
+                idf: ids_f32(&id),
+                center: lanes(center),
+                radius: Vec4::from_array(radius),
+            },
+        }
+    }
+}
+
 impl Flat {
     /// `prims` in id order.
     pub fn new(prims: &[Shape]) -> Flat {
@@ -65,76 +134,9 @@ impl Flat {
                 Shape::Triangle { .. } => others.push((id as PrimId, *s)),
             }
         }
-        let quads = quads
-            .chunks(4)
-            .map(|ch| {
-                let mut id = [NO_PRIM; 4];
-                // Padding: a plane with zero normal never yields a finite positive t.
-                let (mut corner, mut n, mut su, mut sv) = (
-                    [Vec3A::ZERO; 4],
-                    [Vec3A::ZERO; 4],
-                    [Vec3A::ZERO; 4],
-                    [Vec3A::ZERO; 4],
-                );
-                let mut plane = [0.0f32; 4];
-                for (l, (pid, s)) in ch.iter().enumerate() {
-                    if let Shape::Quad {
-                        corner: c,
-                        n: nn,
-                        su: a,
-                        sv: b,
-                        plane: p,
-                        ..
-                    } = *s
-                    {
-                        id[l] = *pid;
-                        (corner[l], n[l], su[l], sv[l], plane[l]) = (c, nn, a, b, p);
-                    }
-                }
-                Quads4 {
-                    id,
-                    lanes: QuadLanes {
-                        idf: ids_f32(&id),
-                        corner: lanes(corner),
-                        n: lanes(n),
-                        su: lanes(su),
-                        sv: lanes(sv),
-                        plane: Vec4::from_array(plane),
-                    },
-                }
-            })
-            .collect();
-        let spheres = spheres
-            .chunks(4)
-            .map(|ch| {
-                let mut id = [NO_PRIM; 4];
-                let mut center = [Vec3A::ZERO; 4];
-                // Padding: radius 0 is never hit (the discriminant test is strict).
-                let mut radius = [0.0f32; 4];
-                for (l, (pid, s)) in ch.iter().enumerate() {
-                    if let Shape::Sphere {
-                        center: c,
-                        radius: r,
-                    } = *s
-                    {
-                        id[l] = *pid;
-                        center[l] = c;
-                        radius[l] = r;
-                    }
-                }
-                Spheres4 {
-                    id,
-                    lanes: SphereLanes {
-                        idf: ids_f32(&id),
-                        center: lanes(center),
-                        radius: Vec4::from_array(radius),
-                    },
-                }
-            })
-            .collect();
         Flat {
-            quads,
-            spheres,
+            quads: quads.chunks(4).map(Quads4::pack).collect(),
+            spheres: spheres.chunks(4).map(Spheres4::pack).collect(),
             others,
             splats: Splats::new(prims),
         }

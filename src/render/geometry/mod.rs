@@ -14,6 +14,7 @@ mod flat;
 mod lanes;
 mod packet;
 mod shapes;
+mod triangle;
 mod triangle_f64;
 
 pub use accel::{Accel, PrimHit};

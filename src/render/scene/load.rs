@@ -1,5 +1,6 @@
 //! JSON text -> validated scene description, with every error naming its JSON path
-//! (`objects[3].radius: expected a number`).
+//! (`objects[3].radius: expected a number`): the tagged unions dispatched by hand, typed
+//! values made from JSON, OBJ files read. What makes a typed value valid is in `checks.rs`.
 
 use std::path::{Path, PathBuf};
 
@@ -7,13 +8,14 @@ use glam::DVec3;
 use serde::de::DeserializeOwned;
 use serde_json::Value;
 
+use super::checks::{
+    check_camera, check_mesh, check_phong, color, non_degenerate_pair, positive, reflectance,
+};
 use super::format::*;
 use super::{LightDesc, MeshData, ObjectDesc, SceneDesc, SceneError, ShapeDesc};
-use crate::render::camera::MAX_IMAGE_SIDE;
 use crate::render::material::Material;
-use crate::render::math::Rgb;
 
-fn err(path: impl Into<String>, message: impl Into<String>) -> SceneError {
+pub(super) fn err(path: impl Into<String>, message: impl Into<String>) -> SceneError {
     SceneError {
         path: path.into(),
         message: message.into(),
@@ -68,44 +70,8 @@ fn tagged(value: Value, path: &str, allowed: &[&str]) -> Result<(String, Value),
     Ok((tag, Value::Object(map)))
 }
 
-fn dvec(v: V3) -> DVec3 {
+pub(super) fn dvec(v: V3) -> DVec3 {
     DVec3::from_array(v.0)
-}
-
-fn color(v: V3, path: String) -> Result<Rgb, SceneError> {
-    if v.0.iter().any(|c| *c < 0.0) {
-        return Err(err(path, "colour components must be >= 0"));
-    }
-    Ok(Rgb::new(v.0[0] as f32, v.0[1] as f32, v.0[2] as f32))
-}
-
-/// A reflectance (albedo): a fraction of light reflected, so at most 1 per channel.
-fn reflectance(v: V3, path: String) -> Result<Rgb, SceneError> {
-    if v.0.iter().any(|c| *c > 1.0) {
-        return Err(err(
-            path,
-            "components must be at most 1: a surface cannot reflect more light than it receives \
-             (colours written 0-255 need dividing by 255)",
-        ));
-    }
-    color(v, path)
-}
-
-fn positive(n: Num, path: String) -> Result<f64, SceneError> {
-    if n.0 > 0.0 {
-        Ok(n.0)
-    } else {
-        Err(err(path, format!("must be > 0, got {}", n.0)))
-    }
-}
-
-/// Rejects parallel or zero edges: sin(angle) * |u||v| below 1e-10 |u||v|.
-fn non_degenerate_pair(u: DVec3, v: DVec3, path: &str, what: &str) -> Result<(), SceneError> {
-    let area = u.cross(v).length();
-    if !(area > 1e-10 * u.length() * v.length()) || area == 0.0 {
-        return Err(err(path, format!("degenerate {what} (zero area)")));
-    }
-    Ok(())
 }
 
 pub(super) fn parse(text: &str, base_dir: Option<&Path>) -> Result<SceneDesc, SceneError> {
@@ -149,38 +115,6 @@ pub(super) fn parse_value(value: Value, base_dir: Option<&Path>) -> Result<Scene
     })
 }
 
-fn check_camera(c: CameraDef) -> Result<CameraDef, SceneError> {
-    let fov = c.fov.0;
-    if !(fov > 0.0 && fov < 180.0) {
-        return Err(err(
-            "camera.fov",
-            format!("must be in (0, 180) degrees, got {fov}"),
-        ));
-    }
-    for (field, v) in [("width", c.width), ("height", c.height)] {
-        if !(1..=MAX_IMAGE_SIDE).contains(&v) {
-            return Err(err(
-                format!("camera.{field}"),
-                format!("must be in 1..={MAX_IMAGE_SIDE}, got {v}"),
-            ));
-        }
-    }
-    let (position, look_at) = (dvec(c.position), dvec(c.look_at));
-    let forward = look_at - position;
-    // The direction is taken in f64 (Scene::build), so only f64's own precision limits it.
-    if !(forward.length() > 1e-12 * position.length().max(look_at.length())) {
-        return Err(err("camera.look_at", "must differ from camera.position"));
-    }
-    let up = dvec(c.up);
-    if !(forward.normalize().cross(up).length() > 1e-6 * up.length()) {
-        return Err(err(
-            "camera.up",
-            "must not be zero or parallel to the view direction",
-        ));
-    }
-    Ok(c)
-}
-
 fn parse_material(v: Value, path: &str) -> Result<Material, SceneError> {
     let (tag, v) = tagged(v, path, &["diffuse", "mirror", "dielectric", "phong"])?;
     Ok(match tag.as_str() {
@@ -207,15 +141,7 @@ fn parse_material(v: Value, path: &str) -> Result<Material, SceneError> {
             let diffuse = color(d.diffuse, format!("{path}.diffuse"))?;
             let specular = color(d.specular, format!("{path}.specular"))?;
             let exponent = d.exponent.0;
-            if !(0.0..=1e6).contains(&exponent) {
-                return Err(err(format!("{path}.exponent"), "must be in [0, 1e6]"));
-            }
-            if (diffuse + specular).max_element() > 1.0 + 1e-6 {
-                return Err(err(
-                    path,
-                    "diffuse + specular exceeds 1 in some channel: the material would create energy",
-                ));
-            }
+            check_phong(diffuse, specular, exponent, path)?;
             Material::Phong {
                 diffuse,
                 specular,
@@ -295,32 +221,6 @@ fn parse_object(
             })
         }
     }
-}
-
-fn check_mesh(mesh: &MeshData, path: &str) -> Result<(), SceneError> {
-    if mesh.triangles.is_empty() {
-        return Err(err(
-            format!("{path}.triangles"),
-            "a mesh needs at least one triangle",
-        ));
-    }
-    let n = mesh.positions.len();
-    for (j, tri) in mesh.triangles.iter().enumerate() {
-        let tpath = || format!("{path}.triangles[{j}]");
-        if let Some(bad) = tri.iter().find(|&&i| i as usize >= n) {
-            return Err(err(
-                tpath(),
-                format!("vertex index {bad} out of range ({n} positions)"),
-            ));
-        }
-        let [a, b, c] = tri.map(|i| mesh.positions[i as usize]);
-        let (u, v) = (b - a, c - a);
-        let area = u.cross(v).length();
-        if !(area > 1e-10 * u.length() * v.length()) || area == 0.0 {
-            return Err(err(tpath(), "degenerate triangle (zero area)"));
-        }
-    }
-    Ok(())
 }
 
 /// Load a Wavefront OBJ file given relative to the scene's folder; it may not leave it.

@@ -1,11 +1,12 @@
-//! Scenes: the JSON format (`format`), its validation (`load`), and the immutable [`Scene`]
-//! the renderer reads.
+//! Scenes: the JSON format (`format`), its validation (`load`, with the semantic checks in
+//! `checks`), and the immutable [`Scene`] the renderer reads.
 //!
 //! The loader works in f64 and hands the engine f32 coordinates relative to the centre of the
 //! scene's bounds. With no absolute epsilon anywhere (see `geometry`), this makes an image
 //! independent of where the scene sits in space and of its scale.
 
 mod build;
+mod checks;
 mod enclosure;
 mod format;
 mod load;
