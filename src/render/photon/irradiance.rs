@@ -6,7 +6,7 @@ use rayon::prelude::*;
 
 use super::estimate::{NORMAL_COS, Query, irradiance_knn_from};
 use super::point_grid::PointGrid;
-use super::{ClassMask, IRRADIANCE_STRIDE, KdItem, KnnScratch, PhotonMap};
+use super::{ClassMask, IRRADIANCE_STRIDE, KdItem, KnnScratch, Photon, PhotonMap};
 use crate::render::control::{Cancelled, Control, Phase};
 use crate::render::math::Rgb;
 
@@ -61,6 +61,25 @@ pub struct IrradianceCache {
     pub mean_r2: f64,
 }
 
+/// The photons marked as irradiance points at tracing: their indices in `photons` and the
+/// points, in that order. A pass over every photon of the map before the estimates can
+/// start, so on all threads (measured: docs/performance-history.md, "irradiance points
+/// picked in parallel").
+fn pick_points(photons: &[Photon]) -> (Vec<usize>, Vec<IrradiancePoint>) {
+    photons
+        .par_iter()
+        .enumerate()
+        .filter(|(_, ph)| ph.is_irradiance_point())
+        .map(|(i, ph)| {
+            let point = IrradiancePoint {
+                pos: ph.pos,
+                n: ph.normal_i8(),
+            };
+            (i, point)
+        })
+        .unzip()
+}
+
 impl IrradianceCache {
     pub fn build(
         map: &PhotonMap,
@@ -70,21 +89,7 @@ impl IrradianceCache {
         control: &Control,
     ) -> Result<IrradianceCache, Cancelled> {
         let photons = map.tree.items();
-        // A pass over every photon of the map before the estimates can start, so on all
-        // threads (measured: docs/performance-history.md, "irradiance points picked in
-        // parallel").
-        let (picks, points): (Vec<usize>, Vec<IrradiancePoint>) = photons
-            .par_iter()
-            .enumerate()
-            .filter(|(_, ph)| ph.is_irradiance_point())
-            .map(|(i, ph)| {
-                let point = IrradiancePoint {
-                    pos: ph.pos,
-                    n: ph.normal_i8(),
-                };
-                (i, point)
-            })
-            .unzip();
+        let (picks, points) = pick_points(photons);
         let scale = IRRADIANCE_STRIDE as f32 / (IRRADIANCE_STRIDE - 1) as f32;
         let tracker = control.tracker(Phase::Precompute, picks.len() as u64);
         // Points per work item (the cancel grain): 1024 at k <= 16, fewer for larger k, as
