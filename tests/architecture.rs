@@ -211,8 +211,10 @@ fn functions(lines: &[String]) -> Vec<(String, usize, usize)> {
         let t = line.trim();
         if t.starts_with("#[cfg(test)]") || t.starts_with("#[test]") {
             test_attr = true;
-        } else if !(t.is_empty() || t.starts_with("#[") || fn_name(t).is_some())
-            && !t.starts_with("mod ")
+        } else if !(t.is_empty()
+            || t.starts_with("#[")
+            || t.starts_with("mod ")
+            || fn_name(t).is_some())
         {
             // The attribute was on something else (a `use`, a constant).
             test_attr = false;

@@ -104,3 +104,39 @@ fn the_test_command_installs_the_browsers_and_runs_every_test() {
         "tests/run.sh runs cargo test over every test binary"
     );
 }
+
+/// The README's flag tables give each spec flag's default as the spec has it (the defaults
+/// are written once, in src/spec; `spec::default_text` is also what `--help` shows): a
+/// table row whose flag is a field of the spec with a default must say exactly that default.
+#[test]
+fn readme_flag_defaults_are_the_spec_s() {
+    let readme = std::fs::read_to_string(Path::new(ROOT).join("README.md")).unwrap();
+    let mut checked = Vec::new();
+    for line in readme.lines().filter(|l| l.starts_with("| `--")) {
+        let cells: Vec<&str> = line.split(" | ").collect();
+        let flag = cells[0]
+            .trim_start_matches("| `--")
+            .split(['`', ' '])
+            .next()
+            .unwrap();
+        let field = flag.replace('-', "_");
+        if let Some(want) = photonbox::spec::default_text(&field) {
+            assert_eq!(cells[1].trim(), want, "README.md, `--{flag}`: {line}");
+            checked.push(field);
+        }
+    }
+    for field in [
+        "integrator",
+        "photons",
+        "k",
+        "gather_rays",
+        "spp",
+        "iterations",
+        "alpha",
+    ] {
+        assert!(
+            checked.iter().any(|c| c == field),
+            "README.md has no table row for --{field}"
+        );
+    }
+}

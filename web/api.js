@@ -40,6 +40,15 @@ export async function apiJson(path, opts = {}) {
   return body;
 }
 
+/// Each integrator's defaults, as the server's spec has them (its OpenAPI document's
+/// `Params` schema, `x-defaults`): the form shows them and never writes them itself.
+export async function specDefaults() {
+  const r = await fetch("/api/openapi.json");
+  if (!r.ok) throw new ApiError(r.status, null);
+  const doc = await r.json();
+  return doc.components.schemas.Params["x-defaults"];
+}
+
 /// Show an image the API serves (it needs the Authorization header) in `img`.
 export async function loadImage(img, path, signal) {
   const r = await api(path, { signal, cache: "no-store" });

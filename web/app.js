@@ -4,7 +4,7 @@
 // format.js, gallery.js, submit.js (form, presets, estimate, field errors), job.js (job page),
 // charts.js (convergence charts), compare.js.
 
-import { TOKEN_KEY, apiJson, onUnauthorized, takeTokenFromUrl } from "./api.js";
+import { TOKEN_KEY, apiJson, onUnauthorized, specDefaults, takeTokenFromUrl } from "./api.js";
 import { initCompare, openCompare } from "./compare.js";
 import { clearGallery, startGallery, stopGallery } from "./gallery.js";
 import { initJob, openJob } from "./job.js";
@@ -42,6 +42,12 @@ async function signIn() {
   } catch (_) {
     state.scenes = [];
   }
+  try {
+    state.defaults = await specDefaults();
+  } catch (_) {
+    state.defaults = null; // the fields stay empty: the server applies its defaults
+  }
+  onIntegratorChange();
   fillScenes();
   route();
 }

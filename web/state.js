@@ -7,6 +7,7 @@ export const state = {
   me: null,
   jobs: [],            // the last GET /api/jobs, newest first
   scenes: [],
+  defaults: null,      // each integrator's defaults: the API document's Params x-defaults
   sceneSizes: new Map(), // built-in scene name -> [width, height]
   thumbs: new Map(),   // job id -> { key, url }
   galleryTimer: null,

@@ -5,26 +5,44 @@ import { ApiError, apiJson } from "./api.js";
 import { fmtSeconds, sceneOf } from "./format.js";
 import { $, state } from "./state.js";
 
-/// Presets, per integrator: [photons, caustic photons, k, gather rays, spp, passes, scale of
-/// the scene's own resolution].
-const PRESETS = {
-  draft: { photon: [50000, 50000, 30, 0, 1], ppm: [20000, 20000, 10, 0, 1, 8], raytrace: [0, 0, 0, 0, 1], scale: 0.5 },
-  good: { photon: [200000, 200000, 50, 8, 4], ppm: [100000, 100000, 10, 0, 1, 32], raytrace: [0, 0, 0, 0, 4], scale: 1 },
-  final: { photon: [1000000, 1000000, 100, 16, 16], ppm: [200000, 200000, 10, 0, 1, 256], raytrace: [0, 0, 0, 0, 16], scale: 2 },
+/// The form's fields that are spec parameters: element id -> field of `params`.
+const SPEC_FIELDS = {
+  photons: "photons", "caustic-photons": "caustic_photons", k: "k", "gather-rays": "gather_rays",
+  spp: "spp", iterations: "iterations",
 };
+
+/// Presets, per integrator: the fields they set, over the integrator's defaults (`good` is
+/// the defaults themselves, as the server's spec has them), and the scale of the scene's own
+/// resolution.
+const PRESETS = {
+  draft: {
+    photon: { photons: 50000, caustic_photons: 50000, k: 30, gather_rays: 0, spp: 1 },
+    ppm: { photons: 20000, caustic_photons: 20000, iterations: 8 },
+    raytrace: { spp: 1 },
+    scale: 0.5,
+  },
+  good: { photon: {}, ppm: { iterations: 32 }, raytrace: {}, scale: 1 },
+  final: {
+    photon: { photons: 1000000, caustic_photons: 1000000, k: 100, gather_rays: 16, spp: 16 },
+    ppm: { photons: 200000, caustic_photons: 200000, iterations: 256 },
+    raytrace: { spp: 16 },
+    scale: 2,
+  },
+};
+
+/// Fill the spec fields with `values` over the integrator's defaults.
+function fillSpecFields(integ, values) {
+  const defaults = (state.defaults && state.defaults[integ]) || {};
+  for (const [id, field] of Object.entries(SPEC_FIELDS)) {
+    const v = field in values ? values[field] : defaults[field];
+    $(id).value = v == null ? "" : v;
+  }
+}
 
 function applyPreset(name) {
   const preset = PRESETS[name];
   const integ = $("integrator").value;
-  const [photons, caustic, k, gather, spp, passes] = preset[integ];
-  if (integ !== "raytrace") {
-    $("photons").value = photons;
-    $("caustic-photons").value = caustic;
-    $("k").value = k;
-    $("gather-rays").value = gather;
-  }
-  $("spp").value = spp;
-  if (passes) $("iterations").value = passes;
+  fillSpecFields(integ, preset[integ]);
   const [w, h] = sceneSize();
   $("width").value = Math.max(1, Math.round(w * preset.scale));
   $("height").value = Math.max(1, Math.round(h * preset.scale));
@@ -102,14 +120,8 @@ export function onIntegratorChange() {
   document.body.dataset.integrator = integ;
   for (const el of document.querySelectorAll(".ppm-only")) el.hidden = integ !== "ppm";
   for (const el of document.querySelectorAll(".photon-only")) el.hidden = integ === "raytrace";
-  // The CLI's defaults for the new integrator.
-  if (integ === "ppm") {
-    $("photons").value = 100000; $("caustic-photons").value = 100000;
-    $("k").value = 10; $("gather-rays").value = 0; $("spp").value = 1;
-  } else if (integ === "photon") {
-    $("photons").value = 200000; $("caustic-photons").value = 200000;
-    $("k").value = 50; $("gather-rays").value = 8; $("spp").value = 4;
-  }
+  // The new integrator's defaults, as the server's spec has them.
+  fillSpecFields(integ, {});
   updateEstimate();
 }
 
@@ -158,15 +170,17 @@ function formBody() {
 /// fitted to CLI renders of the Cornell box: photon tracing and map building at 1.7M photons/s;
 /// per camera sample 0.35 us (raytrace), 0.7 us per camera or gather ray (photon), 0.9 us
 /// (ppm, per pass); photon's irradiance precompute 25 ns per global photon and unit of k.
-function estimateSeconds(p) {
+function estimateSeconds(params) {
+  const integ = params.integrator || "photon";
+  // What the form leaves empty, the server fills with its defaults.
+  const p = Object.assign({}, (state.defaults && state.defaults[integ]) || {}, params);
   const pixels = (p.width || 384) * (p.height || 384);
-  const integ = p.integrator || "photon";
   const samples = pixels * (p.spp || 1);
   if (integ === "raytrace") return 0.05 + samples * 0.35e-6;
   const photons = (p.photons || 0) + (p.caustic_photons || 0);
-  if (integ === "ppm") return 0.05 + (p.iterations || 16) * (photons / 1.7e6 + samples * 0.9e-6);
-  const gather = p.gather_rays == null ? 8 : p.gather_rays;
-  return 0.05 + photons / 1.7e6 + samples * (1 + gather) * 0.7e-6 + (p.photons || 0) * (p.k || 50) * 25e-9;
+  if (integ === "ppm") return 0.05 + (p.iterations || 1) * (photons / 1.7e6 + samples * 0.9e-6);
+  return 0.05 + photons / 1.7e6 + samples * (1 + (p.gather_rays || 0)) * 0.7e-6
+    + (p.photons || 0) * (p.k || 1) * 25e-9;
 }
 
 /// Finished jobs' measured time over the model's estimate: the model scaled to this server.

@@ -236,10 +236,14 @@ impl Material {
                 diffuse,
                 specular,
                 exponent,
-            } => {
-                let ps = Self::phong_specular_probability(diffuse, specular);
-                self.sample_phong(ps, exponent, wo, n, u_lobe, u)
-            }
+            } => self.sample_phong(
+                Self::phong_specular_probability(diffuse, specular),
+                exponent,
+                wo,
+                n,
+                u_lobe,
+                u,
+            ),
         }
     }
 

@@ -4,13 +4,13 @@
 //! `server`/`jobs` modules (a test in tests/architecture.rs reads the sources to check).
 
 pub mod accuracy;
-pub mod camera;
-pub mod control;
-pub mod effects;
-pub mod film;
+pub(crate) mod camera;
+pub(crate) mod control;
+pub(crate) mod effects;
+pub(crate) mod film;
 pub mod geometry;
-pub mod integrator;
-pub mod light;
+pub(crate) mod integrator;
+pub(crate) mod light;
 pub mod material;
 pub mod math;
 mod oneshot;
@@ -29,7 +29,7 @@ pub use oneshot::trace_maps;
 pub use outcome::{RenderError, RenderOutput};
 pub use photon::{PhotonMaps, PhotonStore};
 pub use run::{
-    Inputs, MapSource, Needs, OnPass, Prebuilt, ProgressModel, SuppliedMaps, TraceNow, fingerprint,
-    render, run,
+    Inputs, MapRequest, MapSource, Needs, OnPass, Prebuilt, ProgressModel, SuppliedMaps, TraceNow,
+    fingerprint, render, run,
 };
 pub use scene::{Scene, SceneDesc, SceneError};

@@ -18,7 +18,7 @@ use super::error::ApiError;
 use super::extract::PathName;
 use super::state::Snapshot;
 use super::store::JobRow;
-use super::views::{ErrorBody, Me, SceneEntry, SceneList};
+use super::views::{AuthErrors, ErrorBody, Me, SceneEntry, SceneList};
 use super::{AppRef, events, job_routes, metrics, openapi, submit, web};
 
 pub fn router(app: AppRef) -> Router {
@@ -26,8 +26,7 @@ pub fn router(app: AppRef) -> Router {
     let (router, api) = OpenApiRouter::with_openapi(openapi::base())
         .routes(routes!(job_routes::list_jobs, submit::submit_job))
         .routes(routes!(job_routes::get_job, job_routes::delete_job))
-        .routes(routes!(job_routes::image_png))
-        .routes(routes!(job_routes::image_exr))
+        .routes(routes!(job_routes::image))
         .routes(routes!(events::job_events))
         .routes(routes!(list_scenes))
         .routes(routes!(get_scene))
@@ -67,10 +66,7 @@ pub(super) fn visible_job(
 
 /// The user the token belongs to.
 #[utoipa::path(get, path = "/api/me", tag = "users", security(("bearer" = [])),
-    responses(
-        (status = 200, description = "You", body = Me),
-        (status = 401, description = "No or an unknown token", body = ErrorBody),
-    ))]
+    responses((status = 200, description = "You", body = Me), AuthErrors))]
 async fn me(user: User) -> Json<Me> {
     Json(Me {
         id: user.id,
@@ -81,10 +77,7 @@ async fn me(user: User) -> Json<Me> {
 
 /// The built-in scenes.
 #[utoipa::path(get, path = "/api/scenes", tag = "scenes", security(("bearer" = [])),
-    responses(
-        (status = 200, description = "Every built-in scene", body = SceneList),
-        (status = 401, description = "No or an unknown token", body = ErrorBody),
-    ))]
+    responses((status = 200, description = "Every built-in scene", body = SceneList), AuthErrors))]
 async fn list_scenes(State(app): State<AppRef>, _user: User) -> Json<SceneList> {
     let scenes = app
         .catalog
@@ -100,8 +93,8 @@ async fn list_scenes(State(app): State<AppRef>, _user: User) -> Json<SceneList> 
     params(("name" = String, Path, description = "The scene's name")),
     responses(
         (status = 200, description = "The scene", body = Object),
-        (status = 401, description = "No or an unknown token", body = ErrorBody),
         (status = 404, description = "No such scene", body = ErrorBody),
+        AuthErrors,
     ))]
 async fn get_scene(
     State(app): State<AppRef>,

@@ -10,8 +10,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 
-use crate::render::photon::{PhotonParams, build_photon_maps};
-use crate::render::{Cancelled, Control, MapSource, PhotonMaps, Scene, SuppliedMaps};
+use crate::render::photon::PhotonParams;
+use crate::render::{Cancelled, MapRequest, MapSource, PhotonMaps, SuppliedMaps};
 
 /// Whether a job's maps came from the cache.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -180,20 +180,13 @@ pub struct CachedMaps<'a> {
 }
 
 impl MapSource for CachedMaps<'_> {
-    fn photon_maps(
-        &self,
-        scene: &Scene,
-        params: &PhotonParams,
-        control: &Control,
-    ) -> Result<SuppliedMaps, Cancelled> {
-        let key = cache_key(self.scene_without_camera, params);
-        let (maps, outcome) = self.cache.get_or_build(&key, self.cancel, || {
-            build_photon_maps(scene, params, control)
-        })?;
+    fn photon_maps(&self, want: &MapRequest) -> Result<SuppliedMaps, Cancelled> {
+        let key = cache_key(self.scene_without_camera, want.params);
+        let (maps, outcome) = self
+            .cache
+            .get_or_build(&key, self.cancel, || want.trace())?;
         *self.used.lock().unwrap_or_else(|e| e.into_inner()) = Some((outcome, key));
-        Ok(SuppliedMaps {
-            maps,
-            traced: outcome == CacheOutcome::Miss,
-        })
+        let traced = outcome == CacheOutcome::Miss;
+        Ok(SuppliedMaps { maps, traced })
     }
 }

@@ -12,26 +12,24 @@ use super::AppRef;
 use super::api::visible_job;
 use super::auth::User;
 use super::error::ApiError;
-use super::extract::JobId;
 use super::state::Snapshot;
-use super::views::ErrorBody;
+use super::views::{JobErrors, JobPath};
 
 /// SSE: `status`, `progress`, `preview`, then one final `done|failed|cancelled`. A client
 /// that connects late first gets the current status and progress.
 #[utoipa::path(get, path = "/api/jobs/{id}/events", tag = "jobs", security(("bearer" = [])),
-    params(("id" = i64, Path, description = "The job's id")),
+    params(JobPath),
     responses(
         (status = 200, description = "Server-sent events: `status`, `progress`, `preview`, \
             then `done`, `failed` or `cancelled`; each event's data is the job's live state \
             (status, progress, phase, eta_seconds, previews, error)",
             content_type = "text/event-stream"),
-        (status = 401, description = "No or an unknown token", body = ErrorBody),
-        (status = 404, description = "No such job that you may see", body = ErrorBody),
+        JobErrors,
     ))]
 pub async fn job_events(
     State(app): State<AppRef>,
     user: User,
-    JobId(id): JobId,
+    JobPath { id }: JobPath,
 ) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
     let (row, _) = visible_job(&app, &user, id)?;
     let live = app

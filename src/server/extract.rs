@@ -10,6 +10,7 @@ use super::AppRef;
 use super::api::blocking;
 use super::auth::{self, User};
 use super::error::ApiError;
+use super::views::{ImageFile, JobPath};
 
 /// The user a request's bearer token belongs to: its SHA-256 looked up in memory, else in
 /// the store on a blocking thread (and remembered: tokens never change).
@@ -47,17 +48,16 @@ impl FromRequestParts<AppRef> for User {
 }
 
 /// A job id from the path (`{id}`).
-pub struct JobId(pub i64);
-
-impl<S: Send + Sync> FromRequestParts<S> for JobId {
+impl<S: Send + Sync> FromRequestParts<S> for JobPath {
     type Rejection = ApiError;
 
-    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<JobId, ApiError> {
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<JobPath, ApiError> {
         let not_found = || ApiError::not_found("job");
         let Path(id) = Path::<String>::from_request_parts(parts, state)
             .await
             .map_err(|_| not_found())?;
-        id.parse().map(JobId).map_err(|_| not_found())
+        let id = id.parse().map_err(|_| not_found())?;
+        Ok(JobPath { id })
     }
 }
 
@@ -72,5 +72,21 @@ impl<S: Send + Sync> FromRequestParts<S> for PathName {
             .await
             .map(|Path(n)| PathName(n))
             .map_err(|_| ApiError::not_found("name"))
+    }
+}
+
+/// A job id and one of its image files from the path (`{id}/{file}`).
+pub struct JobImage(pub i64, pub ImageFile);
+
+impl<S: Send + Sync> FromRequestParts<S> for JobImage {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<JobImage, ApiError> {
+        let Path((id, file)) = Path::<(String, String)>::from_request_parts(parts, state)
+            .await
+            .map_err(|_| ApiError::not_found("job"))?;
+        let id = id.parse().map_err(|_| ApiError::not_found("job"))?;
+        let file = ImageFile::parse(&file).ok_or_else(|| ApiError::not_found("file"))?;
+        Ok(JobImage(id, file))
     }
 }

@@ -15,10 +15,12 @@ use super::AppRef;
 use super::api::{blocking, visible, visible_job};
 use super::auth::User;
 use super::error::ApiError;
-use super::extract::JobId;
+use super::extract::JobImage;
 use super::results::{remove_results, result_path};
 use super::store::{JobRow, Status, now};
-use super::views::{ErrorBody, JobList, JobView, Stopped};
+use super::views::{
+    AuthErrors, ErrorBody, ImageFile, JobErrors, JobList, JobPath, JobView, Stopped,
+};
 
 /// A job as the user sees it.
 fn view(app: &AppRef, user: &User, row: &JobRow, snap: &super::state::Snapshot) -> JobView {
@@ -32,10 +34,7 @@ fn view(app: &AppRef, user: &User, row: &JobRow, snap: &super::state::Snapshot) 
 
 /// Your jobs and the public ones (an admin: every job), newest first.
 #[utoipa::path(get, path = "/api/jobs", tag = "jobs", security(("bearer" = [])),
-    responses(
-        (status = 200, description = "The jobs", body = JobList),
-        (status = 401, description = "No or an unknown token", body = ErrorBody),
-    ))]
+    responses((status = 200, description = "The jobs", body = JobList), AuthErrors))]
 pub async fn list_jobs(State(app): State<AppRef>, user: User) -> Json<JobList> {
     let positions = app.scheduler.queue_positions();
     let jobs = app
@@ -52,16 +51,11 @@ pub async fn list_jobs(State(app): State<AppRef>, user: User) -> Json<JobList> {
 
 /// A job: status, progress, phase, ETA, and its stats once done.
 #[utoipa::path(get, path = "/api/jobs/{id}", tag = "jobs", security(("bearer" = [])),
-    params(("id" = i64, Path, description = "The job's id")),
-    responses(
-        (status = 200, description = "The job", body = JobView),
-        (status = 401, description = "No or an unknown token", body = ErrorBody),
-        (status = 404, description = "No such job that you may see", body = ErrorBody),
-    ))]
+    params(JobPath), responses((status = 200, description = "The job", body = JobView), JobErrors))]
 pub async fn get_job(
     State(app): State<AppRef>,
     user: User,
-    JobId(id): JobId,
+    JobPath { id }: JobPath,
 ) -> Result<Json<JobView>, ApiError> {
     let (row, snap) = visible_job(&app, &user, id)?;
     Ok(Json(JobView {
@@ -72,19 +66,18 @@ pub async fn get_job(
 
 /// Cancel a queued or running job; delete a finished one (and its images).
 #[utoipa::path(delete, path = "/api/jobs/{id}", tag = "jobs", security(("bearer" = [])),
-    params(("id" = i64, Path, description = "The job's id")),
+    params(JobPath),
     responses(
         (status = 200, description = "Asked to stop: whether it has", body = Stopped),
         (status = 204, description = "A finished job, deleted"),
-        (status = 401, description = "No or an unknown token", body = ErrorBody),
         (status = 403, description = "Another user's public job", body = ErrorBody),
-        (status = 404, description = "No such job that you may see", body = ErrorBody),
         (status = 409, description = "The job is starting: try again", body = ErrorBody),
+        JobErrors,
     ))]
 pub async fn delete_job(
     State(app): State<AppRef>,
     user: User,
-    JobId(id): JobId,
+    JobPath { id }: JobPath,
 ) -> Result<Response, ApiError> {
     let (row, _) = visible_job(&app, &user, id)?;
     if !(user.admin || row.user_id == user.id) {
@@ -136,58 +129,27 @@ pub async fn delete_job(
     ))
 }
 
-/// The job's image as PNG (8-bit sRGB at its exposure), or the latest preview while a
-/// progressive job runs. `Range` and conditional requests as for any file.
-#[utoipa::path(get, path = "/api/jobs/{id}/image.png", tag = "jobs", security(("bearer" = [])),
-    params(("id" = i64, Path, description = "The job's id")),
+/// A job's image: the final one, or the latest preview while a progressive job runs.
+/// Streamed from the file (tower-http's `ServeFile`: chunks, not the whole file in memory),
+/// with `Range` (but on a preview), conditional requests and a cheap `HEAD` (axum answers it
+/// from the same handler without a body). A preview replaced meanwhile (by a rename) does not
+/// disturb a download in flight: it reads the file it opened.
+#[utoipa::path(get, path = "/api/jobs/{id}/{file}", tag = "jobs", security(("bearer" = [])),
+    params(JobPath, ("file" = inline(ImageFile), Path, description = "Which image")),
     responses(
-        (status = 200, description = "The image", content_type = "image/png"),
-        (status = 401, description = "No or an unknown token", body = ErrorBody),
-        (status = 404, description = "No such job, or no image yet", body = ErrorBody),
+        (status = 200, description = "The image",
+            content(("image/png"), ("image/x-exr"))),
+        (status = 404, description = "No such job that you may see, or no image yet",
+            body = ErrorBody),
+        AuthErrors,
     ))]
-pub async fn image_png(
-    app: State<AppRef>,
-    user: User,
-    id: JobId,
-    req: Request,
-) -> Result<Response, ApiError> {
-    image(app, user, id, "png", req).await
-}
-
-/// The job's image as OpenEXR (linear radiance, 32-bit float), or the latest preview.
-#[utoipa::path(get, path = "/api/jobs/{id}/image.exr", tag = "jobs", security(("bearer" = [])),
-    params(("id" = i64, Path, description = "The job's id")),
-    responses(
-        (status = 200, description = "The image", content_type = "image/x-exr"),
-        (status = 401, description = "No or an unknown token", body = ErrorBody),
-        (status = 404, description = "No such job, or no image yet", body = ErrorBody),
-    ))]
-pub async fn image_exr(
-    app: State<AppRef>,
-    user: User,
-    id: JobId,
-    req: Request,
-) -> Result<Response, ApiError> {
-    image(app, user, id, "exr", req).await
-}
-
-/// A job's final image (`ext`: png or exr), or its latest preview. Streamed from the file
-/// (tower-http's `ServeFile`: chunks, not the whole file in memory), with `Range`,
-/// conditional requests and a cheap `HEAD` (axum answers it from the same handler without a
-/// body). A preview replaced meanwhile (by a rename) does not disturb a download in flight: it
-/// reads the file it opened.
-async fn image(
+pub async fn image(
     State(app): State<AppRef>,
     user: User,
-    JobId(id): JobId,
-    ext: &'static str,
+    JobImage(id, file): JobImage,
     mut req: Request,
 ) -> Result<Response, ApiError> {
-    let mime = if ext == "png" {
-        "image/png"
-    } else {
-        "image/x-exr"
-    };
+    let (ext, mime) = file.ext_and_type();
     let (row, _) = visible_job(&app, &user, id)?;
     let path = result_path(&app.config.data, row.id, ext);
     if !row.status.is_final() {

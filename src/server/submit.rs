@@ -18,7 +18,7 @@ use super::jobs::{JobRequest, JobSpec, from_json};
 use super::needs::JobNeeds;
 use super::scenes::resolve_request;
 use super::store::{JobRow, Status, now};
-use super::views::{ErrorBody, SelfLink, Submitted};
+use super::views::{AuthErrors, ErrorBody, SelfLink, Submitted};
 use crate::spec::SpecForm;
 
 /// Submit a job: a scene (yours, or a built-in one by name) and its parameters. It is
@@ -28,12 +28,12 @@ use crate::spec::SpecForm;
     responses(
         (status = 202, description = "Accepted and queued", body = Submitted),
         (status = 400, description = "Malformed JSON, or not an object", body = ErrorBody),
-        (status = 401, description = "No or an unknown token", body = ErrorBody),
         (status = 408, description = "The body did not arrive in time", body = ErrorBody),
         (status = 413, description = "The body is over the server's limit", body = ErrorBody),
         (status = 422, description = "A field is invalid or over a limit: `path` names it",
             body = ErrorBody),
         (status = 429, description = "You have the most queued jobs allowed", body = ErrorBody),
+        AuthErrors,
     ))]
 pub async fn submit_job(
     State(app): State<AppRef>,

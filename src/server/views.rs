@@ -157,3 +157,61 @@ pub struct Me {
     /// Admins see and may cancel every job.
     pub admin: bool,
 }
+
+/// The error answers of every route that takes a token. (This and [`JobErrors`] describe
+/// what `ApiError` answers, for the document: no handler builds them.)
+#[derive(utoipa::IntoResponses)]
+#[allow(dead_code)]
+pub enum AuthErrors {
+    /// No or an unknown token.
+    #[response(status = 401)]
+    Unauthorized(ErrorBody),
+}
+
+/// The error answers of a route about one job.
+#[derive(utoipa::IntoResponses)]
+#[allow(dead_code)]
+pub enum JobErrors {
+    /// No or an unknown token.
+    #[response(status = 401)]
+    Unauthorized(ErrorBody),
+    /// No such job that you may see.
+    #[response(status = 404)]
+    NotFound(ErrorBody),
+}
+
+/// A job's path parameter.
+#[derive(utoipa::IntoParams)]
+#[into_params(parameter_in = Path)]
+pub struct JobPath {
+    /// The job's id.
+    pub id: i64,
+}
+
+/// A job's image files: the PNG (8-bit sRGB at its exposure) and the EXR (linear radiance,
+/// 32-bit float).
+#[derive(utoipa::ToSchema)]
+pub enum ImageFile {
+    #[schema(rename = "image.png")]
+    Png,
+    #[schema(rename = "image.exr")]
+    Exr,
+}
+
+impl ImageFile {
+    pub fn parse(name: &str) -> Option<ImageFile> {
+        match name {
+            "image.png" => Some(ImageFile::Png),
+            "image.exr" => Some(ImageFile::Exr),
+            _ => None,
+        }
+    }
+
+    /// The result file's extension and content type.
+    pub fn ext_and_type(&self) -> (&'static str, &'static str) {
+        match self {
+            ImageFile::Png => ("png", "image/png"),
+            ImageFile::Exr => ("exr", "image/x-exr"),
+        }
+    }
+}

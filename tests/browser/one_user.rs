@@ -43,13 +43,29 @@ async fn submit_watch_compare(browser: Browser) {
     .await;
     assert_eq!(accessibility_problems(&c).await, json!([]));
 
+    // The form's defaults are the server's spec's, for each integrator.
+    let value = |id: &str| format!("return document.getElementById('{id}').value;");
+    for (integrator, p) in [
+        ("ppm", photonbox::spec::PhotonMapping::PPM_PASS),
+        ("photon", photonbox::spec::PhotonMapping::PHOTON),
+    ] {
+        by_id(&c, "integrator")
+            .await
+            .select_by_value(integrator)
+            .await
+            .unwrap();
+        for (id, want) in [
+            ("photons", p.photons.to_string()),
+            ("k", p.k.to_string()),
+            ("gather-rays", p.gather_rays.to_string()),
+            ("spp", p.spp.to_string()),
+        ] {
+            assert_eq!(js(&c, &value(id)).await, json!(want), "{integrator}: #{id}");
+        }
+    }
+
     // The estimate follows the settings: final costs more than draft.
     select(&c, "scene-name", "cornell").await;
-    by_id(&c, "integrator")
-        .await
-        .select_by_value("photon")
-        .await
-        .unwrap();
     let estimate = "Number(document.getElementById('estimate').dataset.seconds)";
     click_css(&c, "[data-preset=draft]").await;
     let draft = wait_for(&c, "a draft estimate", estimate, 5).await;

@@ -166,7 +166,7 @@ fn grid_irradiance(
     scratch: &mut KnnScratch,
 ) -> Option<RadianceEstimate> {
     let found = scratch.found_mut();
-    let r2 = grid.knn(q.p, q.k + 1, q.r2_max, &query_filter(q), GRID_LIMITS, found)?;
+    let r2 = grid.knn(q.p, q.k + 1, q.r2_max, GRID_LIMITS, &query_filter(q), found)?;
     Some(estimate_from(map, found, q.k, r2))
 }
 

@@ -25,13 +25,22 @@ use crate::spec::{Integrator, RenderSpec, SpecForm};
 /// ([`Prebuilt`]), or a cache (the server's). Progressive passes always trace their own
 /// (each pass's maps are new random numbers, used once).
 pub trait MapSource: Sync {
-    /// The maps of `scene` for `params`, and whether this call traced them.
-    fn photon_maps(
-        &self,
-        scene: &Scene,
-        params: &PhotonParams,
-        control: &Control,
-    ) -> Result<SuppliedMaps, Cancelled>;
+    /// The maps `want` asks for, and whether this call traced them.
+    fn photon_maps(&self, want: &MapRequest) -> Result<SuppliedMaps, Cancelled>;
+}
+
+/// The photon maps of a scene for some photon parameters.
+pub struct MapRequest<'a> {
+    pub scene: &'a Scene,
+    pub params: &'a PhotonParams,
+    pub control: &'a Control<'a>,
+}
+
+impl MapRequest<'_> {
+    /// Trace them.
+    pub fn trace(&self) -> Result<PhotonMaps, Cancelled> {
+        build_photon_maps(self.scene, self.params, self.control)
+    }
 }
 
 /// Photon maps as a [`MapSource`] gives them.
@@ -45,13 +54,8 @@ pub struct SuppliedMaps {
 pub struct TraceNow;
 
 impl MapSource for TraceNow {
-    fn photon_maps(
-        &self,
-        scene: &Scene,
-        params: &PhotonParams,
-        control: &Control,
-    ) -> Result<SuppliedMaps, Cancelled> {
-        let maps = Arc::new(build_photon_maps(scene, params, control)?);
+    fn photon_maps(&self, want: &MapRequest) -> Result<SuppliedMaps, Cancelled> {
+        let maps = Arc::new(want.trace()?);
         Ok(SuppliedMaps { maps, traced: true })
     }
 }
@@ -61,19 +65,15 @@ impl MapSource for TraceNow {
 pub struct Prebuilt(pub Arc<PhotonMaps>);
 
 impl MapSource for Prebuilt {
-    fn photon_maps(
-        &self,
-        scene: &Scene,
-        params: &PhotonParams,
-        control: &Control,
-    ) -> Result<SuppliedMaps, Cancelled> {
-        if self.0.params == *params {
-            return Ok(SuppliedMaps {
-                maps: self.0.clone(),
-                traced: false,
-            });
+    fn photon_maps(&self, want: &MapRequest) -> Result<SuppliedMaps, Cancelled> {
+        if self.0.params != *want.params {
+            return TraceNow.photon_maps(want);
         }
-        TraceNow.photon_maps(scene, params, control)
+        let maps = self.0.clone();
+        Ok(SuppliedMaps {
+            maps,
+            traced: false,
+        })
     }
 }
 
@@ -166,7 +166,12 @@ fn one_shot(
             traced: true,
         }
     } else {
-        inputs.maps.photon_maps(scene, pp, control)?
+        let want = MapRequest {
+            scene,
+            params: pp,
+            control,
+        };
+        inputs.maps.photon_maps(&want)?
     };
     let mut out = render_with_maps(scene, &supplied.maps, spec, analysis, control)?;
     if !supplied.traced {

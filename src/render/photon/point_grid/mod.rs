@@ -181,8 +181,8 @@ impl<T: KdItem> PointGrid<T> {
         q: Vec3A,
         k: usize,
         r2_max: f32,
-        filter: &impl Fn(&T) -> bool,
         limits: BoxLimits,
+        filter: &impl Fn(&T) -> bool,
         found: &mut Vec<(f32, u32)>,
     ) -> Option<f32> {
         found.clear();

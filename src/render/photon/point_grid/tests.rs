@@ -135,7 +135,7 @@ fn knn_matches_the_tree() {
         let k = 1 + i % 8;
         let r2_max = [r_max * r_max, 1e-4, 0.0][i / 8 % 3];
         let even = |p: &P| p.id.is_multiple_of(2);
-        let Some(r2) = grid.knn(q, k, r2_max, &even, LIMITS, &mut found) else {
+        let Some(r2) = grid.knn(q, k, r2_max, LIMITS, &even, &mut found) else {
             assert!(found.is_empty());
             continue;
         };
@@ -153,7 +153,7 @@ fn knn_matches_the_tree() {
     // A bound wider than the cells: the box meets too many; no bound at all: the same.
     let all = |_: &P| true;
     for r2_max in [1.0, f32::INFINITY] {
-        let got = grid.knn(Vec3A::splat(0.5), 2, r2_max, &all, LIMITS, &mut found);
+        let got = grid.knn(Vec3A::splat(0.5), 2, r2_max, LIMITS, &all, &mut found);
         assert_eq!(got, None);
     }
     // A box holding more points than allowed declines too, one holding none answers.
@@ -162,12 +162,12 @@ fn knn_matches_the_tree() {
         points: 0,
     };
     let (on_a_plane, between) = (Vec3A::new(0.5, 0.5, 0.25), Vec3A::new(0.5, 0.5, 0.125));
-    let got = grid.knn(on_a_plane, 2, r_max * r_max, &all, none, &mut found);
+    let got = grid.knn(on_a_plane, 2, r_max * r_max, none, &all, &mut found);
     assert_eq!(got, None);
-    let got = grid.knn(between, 2, 1e-4, &all, none, &mut found);
+    let got = grid.knn(between, 2, 1e-4, none, &all, &mut found);
     assert_eq!((got, found.len()), (Some(1e-4), 0));
     // k = 0: nothing, and the bound.
-    let got = grid.knn(Vec3A::splat(0.5), 0, 1e-4, &all, LIMITS, &mut found);
+    let got = grid.knn(Vec3A::splat(0.5), 0, 1e-4, LIMITS, &all, &mut found);
     assert_eq!((got, found.len()), (Some(1e-4), 0));
 }
 
