@@ -5,7 +5,6 @@ mod connections;
 mod hardening;
 mod harness;
 mod memory;
-mod openapi;
 mod same_bytes;
 
 use std::time::Instant;

@@ -2,11 +2,18 @@
 //! (valid and invalid ones, and sequences through the links it infers) against a live
 //! server, and checks every answer against the document: no 5xx, only documented statuses,
 //! bodies and content types as documented, invalid data refused, valid data accepted.
+//!
+//! A test binary of its own: its load would disturb the memory measurements of
+//! tests/server if it ran beside them.
 
 use std::path::PathBuf;
 use std::process::Command;
 
-use super::harness::{Server, client};
+#[path = "server/harness.rs"]
+#[allow(dead_code)] // the server half of the harness
+mod harness;
+
+use harness::{Server, client};
 
 /// The schemathesis command line: `$PHOTONBOX_SCHEMATHESIS`, else `st` on the PATH
 /// (tests/run.sh installs it in a virtual environment and sets the variable).
