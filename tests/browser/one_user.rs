@@ -164,10 +164,14 @@ async fn submit_watch_compare(browser: Browser) {
     )
     .await;
     assert!(p2.as_f64().unwrap() > p1);
+    // Done, and its final image shown (not a preview: the last one is replaced by the
+    // final image after the stream ends).
     wait_for(
         &c,
-        "the job done",
-        "document.getElementById('job-progress-text').dataset.status === 'done'",
+        "the job done and its final image shown",
+        "document.getElementById('job-progress-text').dataset.status === 'done' && \
+         document.getElementById('job-image').naturalWidth > 0 && \
+         !document.getElementById('job-image').alt.includes('latest preview')",
         60,
     )
     .await;
