@@ -132,6 +132,16 @@ pub fn render(app: &super::App) -> String {
         "Bytes of photon maps held by the cache.",
         c.bytes(),
     );
+    if let Some(bytes) = heap_in_use() {
+        family(
+            &mut s,
+            "photonbox_heap_in_use_bytes",
+            "gauge",
+            "Heap bytes allocated and not freed (glibc's count): what the server holds, apart \
+             from what its allocator keeps free for reuse (resident, but not held).",
+            bytes,
+        );
+    }
     let _ = writeln!(
         s,
         "# HELP photonbox_http_requests_total HTTP requests by method, route and status.\n# TYPE photonbox_http_requests_total counter"
@@ -144,4 +154,16 @@ pub fn render(app: &super::App) -> String {
         );
     }
     s
+}
+
+/// Heap bytes in use, as glibc counts them (small and mmapped blocks).
+fn heap_in_use() -> Option<u64> {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        // SAFETY: mallinfo2 only reads the allocator's counters.
+        let info = unsafe { libc::mallinfo2() };
+        Some((info.uordblks + info.hblkhd) as u64)
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    None
 }
