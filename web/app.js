@@ -9,7 +9,7 @@ import { initCompare, openCompare } from "./compare.js";
 import { clearGallery, startGallery, stopGallery } from "./gallery.js";
 import { initJob, openJob } from "./job.js";
 import { $, showView, state } from "./state.js";
-import { fillScenes, initSubmit, onIntegratorChange } from "./submit.js";
+import { fillIntegrators, fillScenes, initSubmit, onIntegratorChange } from "./submit.js";
 
 function signOut(message) {
   localStorage.removeItem(TOKEN_KEY);
@@ -47,6 +47,7 @@ async function signIn() {
   } catch (_) {
     state.defaults = null; // the fields stay empty: the server applies its defaults
   }
+  fillIntegrators();
   onIntegratorChange();
   fillScenes();
   route();

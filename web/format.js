@@ -35,12 +35,10 @@ export function keyParams(job) {
   const w = p.width || s.width, h = p.height || s.height;
   const out = [];
   if (w && h) out.push(`${w}x${h}`);
-  const integ = integratorOf(job);
-  if (integ !== "raytrace") {
-    if (p.photons != null) out.push(`${fmtCount(p.photons)} photons`);
-    if (p.k != null) out.push(`k ${p.k}`);
-  }
-  if (integ === "ppm") out.push(`${p.iterations || 16} passes`);
+  // A job's params are its stored spec: the fields its integrator reads.
+  if (p.photons != null) out.push(`${fmtCount(p.photons)} photons`);
+  if (p.k != null) out.push(`k ${p.k}`);
+  if (p.iterations != null) out.push(`${p.iterations} passes`);
   if (p.spp != null) out.push(`${p.spp} spp`);
   return out.join(", ");
 }

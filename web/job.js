@@ -200,11 +200,14 @@ function showStats(job) {
     box.appendChild(table("Effects simulated, and why", rows, ["effect", "simulated", "how", "reason"]));
   }
   if (s.ppm) {
+    const merges = s.ppm.radius_source !== "none";
     box.appendChild(table("Progressive passes", [
       ["passes", String(s.ppm.passes)],
-      ["alpha", String(s.ppm.alpha)],
-      ["initial radius (global / caustic)",
-        `${(+s.ppm.radius_initial_global).toPrecision(3)} / ${(+s.ppm.radius_initial_caustic).toPrecision(3)} (${s.ppm.radius_source})`],
+      ...(merges ? [
+        ["alpha", String(s.ppm.alpha)],
+        ["initial radius (global / caustic)",
+          `${(+s.ppm.radius_initial_global).toPrecision(3)} / ${(+s.ppm.radius_initial_caustic).toPrecision(3)} (${s.ppm.radius_source})`],
+      ] : []),
       ["stopped by", typeof s.ppm.stopped_by === "string" ? s.ppm.stopped_by : JSON.stringify(s.ppm.stopped_by)],
     ]));
     const chart = convergence(s.ppm);

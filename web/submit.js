@@ -115,11 +115,39 @@ async function onSceneChange() {
   updateEstimate();
 }
 
+/// Whether the integrator reads a field of the spec: its defaults (the server's) have it.
+function reads(integ, field) {
+  const d = state.defaults && state.defaults[integ];
+  return d ? field in d : field !== "iterations";
+}
+
+/// Short descriptions of the integrators the server offers (its defaults name them).
+const INTEGRATORS = {
+  photon: "photon (photon maps)", raytrace: "raytrace (direct light only)",
+  ppm: "ppm (progressive photon mapping)", pt: "pt (path tracing)", lt: "lt (light tracing)",
+  bdpt: "bdpt (bidirectional path tracing)", vcm: "vcm (vertex connection and merging)",
+};
+
+/// The integrator choice: every integrator the server's spec has, its default first.
+export function fillIntegrators() {
+  const sel = $("integrator");
+  const prev = sel.value;
+  const names = state.defaults ? Object.keys(state.defaults) : ["photon"];
+  sel.replaceChildren(...names.map((name) => {
+    const o = document.createElement("option");
+    o.value = name;
+    o.textContent = INTEGRATORS[name] || name;
+    return o;
+  }));
+  if (names.includes(prev)) sel.value = prev;
+}
+
 export function onIntegratorChange() {
   const integ = $("integrator").value;
   document.body.dataset.integrator = integ;
-  for (const el of document.querySelectorAll(".ppm-only")) el.hidden = integ !== "ppm";
-  for (const el of document.querySelectorAll(".photon-only")) el.hidden = integ === "raytrace";
+  for (const el of document.querySelectorAll("[data-field]")) {
+    el.hidden = !reads(integ, el.dataset.field);
+  }
   // The new integrator's defaults, as the server's spec has them.
   fillSpecFields(integ, {});
   updateEstimate();
@@ -136,18 +164,16 @@ function formBody() {
   const params = { integrator: integ, spp: num("spp"), width: num("width"), height: num("height") };
   const exposure = num("exposure");
   if (exposure) params.exposure = exposure;
-  if (integ !== "raytrace") {
-    Object.assign(params, {
-      photons: num("photons"), caustic_photons: num("caustic-photons"), k: num("k"),
-      gather_rays: num("gather-rays"),
-    });
+  for (const [id, field] of Object.entries(SPEC_FIELDS)) {
+    if (field !== "spp" && reads(integ, field)) params[field] = num(id);
+  }
+  if (reads(integ, "effects")) {
     const effects = {};
     if (!$("fx-direct").checked) effects.direct_light = false;
     if (!$("fx-caustics").checked) effects.caustics = false;
     if (!$("fx-indirect").checked) effects.diffuse_interreflection = false;
     if (Object.keys(effects).length) params.effects = effects;
   }
-  if (integ === "ppm") params.iterations = num("iterations");
   const reference = $("reference-job").value;
   if (reference) params.reference_job = Number(reference);
   for (const k of Object.keys(params)) if (params[k] === undefined) delete params[k];
@@ -177,6 +203,10 @@ function estimateSeconds(params) {
   const pixels = (p.width || 384) * (p.height || 384);
   const samples = pixels * (p.spp || 1);
   if (integ === "raytrace") return 0.05 + samples * 0.35e-6;
+  // The bidirectional family: a pass is a light and a camera subpath per sample (measured
+  // on cornell_mirror_glass at 384x384, 16 passes).
+  const perSample = { pt: 0.3e-6, lt: 0.35e-6, bdpt: 1.05e-6, vcm: 2.2e-6 }[integ];
+  if (perSample) return 0.05 + (p.iterations || 1) * samples * perSample;
   const photons = (p.photons || 0) + (p.caustic_photons || 0);
   if (integ === "ppm") return 0.05 + (p.iterations || 1) * (photons / 1.7e6 + samples * 0.9e-6);
   return 0.05 + photons / 1.7e6 + samples * (1 + (p.gather_rays || 0)) * 0.7e-6

@@ -51,6 +51,36 @@ impl Camera {
         self
     }
 
+    /// The viewing direction (unit).
+    pub fn forward(&self) -> Vec3A {
+        self.forward
+    }
+
+    /// The distance from the pinhole of the image plane on which a pixel is a unit square:
+    /// there, sampling one point per pixel is a density of 1 per unit area, and a camera
+    /// ray's solid-angle density is distance^2 / cos^3 (Georgiev et al. 2012, technical
+    /// report; SmallVCM's camera).
+    pub fn image_plane_distance(&self) -> f32 {
+        0.5 * self.height as f32 / self.tan_half_fov
+    }
+
+    /// The film position (pixels, as [`Camera::ray`] takes it) that world point `p`
+    /// projects to: None behind the camera or off the film.
+    pub fn raster(&self, p: Vec3A) -> Option<glam::Vec2> {
+        let d = p - self.position;
+        let z = d.dot(self.forward);
+        if !(z > 0.0) {
+            return None;
+        }
+        let aspect = self.width as f32 / self.height as f32;
+        let sx = d.dot(self.right) / z;
+        let sy = d.dot(self.up) / z;
+        let x = (sx / (self.tan_half_fov * aspect) + 1.0) * 0.5 * self.width as f32;
+        let y = (1.0 - sy / self.tan_half_fov) * 0.5 * self.height as f32;
+        let on_film = x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32;
+        on_film.then_some(glam::Vec2::new(x, y))
+    }
+
     /// The ray through film position (x, y) in pixels, (0, 0) the top-left corner of the image.
     #[inline]
     pub fn ray(&self, x: f32, y: f32) -> Ray {
@@ -89,5 +119,31 @@ mod tests {
             .atan()
             .to_degrees();
         assert!((half - 20.0).abs() < 1e-3, "vertical half-angle {half}");
+    }
+
+    #[test]
+    fn raster_inverts_ray() {
+        let cam = Camera::new(
+            Vec3A::new(1.0, 2.0, 5.0),
+            Vec3A::new(0.0, 0.5, 0.0),
+            Vec3A::Y,
+            50.0,
+            64,
+            48,
+        );
+        for (x, y) in [(0.25, 0.5), (32.0, 24.0), (63.5, 47.75), (10.0, 40.0)] {
+            let r = cam.ray(x, y);
+            let at = cam.raster(r.at(3.7)).expect("in front and on the film");
+            assert!(
+                (at.x - x).abs() < 1e-3 && (at.y - y).abs() < 1e-3,
+                "{x},{y} -> {at}"
+            );
+        }
+        assert!(cam.raster(Vec3A::new(1.0, 2.0, 9.0)).is_none(), "behind");
+        // A pixel is a unit square on the image plane.
+        let d = cam.image_plane_distance();
+        let (a, b) = (cam.ray(10.0, 10.0), cam.ray(11.0, 10.0));
+        let on_plane = |r: &Ray| r.d * (d / r.d.dot(cam.forward()));
+        assert!(((on_plane(&a) - on_plane(&b)).length() - 1.0).abs() < 1e-3);
     }
 }

@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use crate::render::camera::Camera;
 use crate::render::control::{Cancelled, Control, Phase};
+use crate::render::geometry::Ray;
 use crate::render::integrator::{Scratch, Shader};
 use crate::render::math::Rgb;
 use crate::render::sampling::{Sampler, Stream};
@@ -49,6 +50,23 @@ impl Image {
 }
 
 const TILE: u32 = 16;
+
+/// What the camera pass asks of an integrator: the radiance a camera ray brings to pixel
+/// `pixel` (its index, row-major), with a per-thread scratch.
+pub(crate) trait CameraPaths: Sync {
+    type Scratch: Default + Send;
+
+    fn radiance(&self, ray: &Ray, pixel: u64, s: &mut Sampler, scratch: &mut Self::Scratch) -> Rgb;
+}
+
+impl CameraPaths for Shader<'_> {
+    type Scratch = Scratch;
+
+    #[inline]
+    fn radiance(&self, ray: &Ray, _: u64, s: &mut Sampler, scratch: &mut Scratch) -> Rgb {
+        self.camera_ray(ray, s, scratch)
+    }
+}
 
 /// The result of the camera pass.
 pub struct FilmOutput {
@@ -97,8 +115,8 @@ impl PixelSum {
 /// short there is caught by the check after it, so no cut sample reaches an image.) The
 /// check is one relaxed atomic load; a sample is at least a camera ray. Progress is counted
 /// in pixels, a report a tile row.
-pub fn render_film(
-    shader: &Shader,
+pub(crate) fn render_film<P: CameraPaths>(
+    paths: &P,
     camera: &Camera,
     spp: u32,
     seed: u64,
@@ -112,7 +130,7 @@ pub fn render_film(
     let dropped = AtomicU64::new(0);
     let tiles: Vec<Vec<[f32; 3]>> = (0..n_tiles)
         .into_par_iter()
-        .map_init(Scratch::default, |scratch, t| {
+        .map_init(P::Scratch::default, |scratch, t| {
             control.check()?;
             let (tx, ty) = (t % tiles_x, t / tiles_x);
             let (x0, y0) = (tx * TILE, ty * TILE);
@@ -133,7 +151,7 @@ pub fn render_film(
                             Sampler::new(seed, Stream::Camera, pixel * spp as u64 + j as u64);
                         let jitter = s.next_2d();
                         let ray = camera.ray(x as f32 + jitter.x, y as f32 + jitter.y);
-                        let l = shader.camera_ray(&ray, &mut s, scratch);
+                        let l = paths.radiance(&ray, pixel, &mut s, scratch);
                         control.check()?;
                         px.add(l);
                     }

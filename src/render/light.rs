@@ -9,7 +9,7 @@ use std::f32::consts::PI;
 use glam::{Vec2, Vec3A};
 
 use crate::render::geometry::{NO_PRIM, PrimId, Ray, SurfacePoint, spawn_ray};
-use crate::render::math::{Frame, Rgb, gamma};
+use crate::render::math::{Frame, Rgb, gamma, luminance};
 use crate::render::sampling::{cosine_hemisphere, uniform_cone, uniform_sphere};
 
 #[derive(Clone, Copy, Debug)]
@@ -227,6 +227,48 @@ impl Light {
             ray: origin.ray(dir),
             flux: self.power(),
         }
+    }
+}
+
+/// Light-selection table: cumulative luminance of the lights' power, dark lights left out.
+/// Photons and light subpaths pick their light by it, and a bidirectional path's weights
+/// need the same probabilities.
+pub(crate) struct LightPicker {
+    cdf: Vec<f32>,
+    pub(crate) total: f32,
+}
+
+impl LightPicker {
+    pub(crate) fn new(lights: &[Light], dark: &[u32]) -> LightPicker {
+        let mut cdf = Vec::with_capacity(lights.len());
+        let mut acc = 0.0;
+        for (i, l) in lights.iter().enumerate() {
+            if !dark.contains(&(i as u32)) {
+                acc += luminance(l.power()).max(0.0);
+            }
+            cdf.push(acc);
+        }
+        LightPicker { cdf, total: acc }
+    }
+
+    /// The light for `u` in [0, 1) and its selection probability.
+    pub(crate) fn pick(&self, u: f32) -> (usize, f32) {
+        let x = u * self.total;
+        // x can round up to the total: then the last light with any power (never one with
+        // none, whose probability 0 would divide a photon's flux).
+        let i = self.cdf.partition_point(|&c| c <= x);
+        let i = if i < self.cdf.len() {
+            i
+        } else {
+            self.cdf.partition_point(|&c| c < self.total)
+        };
+        (i, self.probability(i))
+    }
+
+    /// The probability of picking light `i`.
+    pub(crate) fn probability(&self, i: usize) -> f32 {
+        let prev = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        (self.cdf[i] - prev) / self.total
     }
 }
 

@@ -4,6 +4,7 @@
 //! `server`/`jobs` modules (a test in tests/architecture.rs reads the sources to check).
 
 pub mod accuracy;
+mod bidir;
 pub(crate) mod camera;
 pub(crate) mod control;
 pub(crate) mod effects;
@@ -18,6 +19,7 @@ mod outcome;
 pub mod output;
 pub mod photon;
 pub mod ppm;
+mod progressive;
 mod run;
 pub mod sampling;
 pub mod scene;

@@ -19,6 +19,8 @@ pub enum Stream {
     Camera = 1,
     GlobalPhotons = 2,
     CausticPhotons = 3,
+    /// Light subpaths of the bidirectional integrators.
+    LightPaths = 4,
 }
 
 /// A small, fast generator (PCG 128-bit MCG, O'Neill 2014) seeded from a hash of

@@ -37,15 +37,22 @@ pub fn default_text(field: &str) -> Option<String> {
         .filter_map(|(name, form)| Some((*name, scalar(form.get(field)?)?)))
         .collect();
     let (_, first) = values.first()?;
-    let others: Vec<String> = values
+    // The other values, each with the integrators that have it, in the integrators' order.
+    let mut others: Vec<(String, Vec<&str>)> = Vec::new();
+    for (name, v) in values.iter().filter(|(_, v)| v != first) {
+        match others.iter_mut().find(|(o, _)| o == v) {
+            Some((_, names)) => names.push(name),
+            None => others.push((v.clone(), vec![name])),
+        }
+    }
+    let others: Vec<String> = others
         .iter()
-        .filter(|(_, v)| v != first)
-        .map(|(name, v)| format!("{name}: {v}"))
+        .map(|(v, names)| format!("{}: {v}", names.join(", ")))
         .collect();
     Some(if others.is_empty() {
         first.clone()
     } else {
-        format!("{first} ({})", others.join(", "))
+        format!("{first} ({})", others.join("; "))
     })
 }
 
@@ -68,7 +75,11 @@ mod tests {
             default_text("photons").as_deref(),
             Some("200000 (ppm: 100000)")
         );
-        assert_eq!(default_text("spp").as_deref(), Some("4 (ppm: 1)"));
+        assert_eq!(
+            default_text("spp").as_deref(),
+            Some("4 (ppm, pt, lt, bdpt, vcm: 1)")
+        );
+        assert_eq!(default_text("alpha").as_deref(), Some("0.7 (vcm: 0.75)"));
         assert_eq!(default_text("iterations").as_deref(), Some("16"));
         assert_eq!(default_text("max_depth").as_deref(), Some("32"));
         assert_eq!(default_text("integrator").as_deref(), Some("photon"));

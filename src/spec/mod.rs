@@ -16,6 +16,8 @@
 //! **Architecture invariant:** this module depends on nothing else in the crate: the engine,
 //! the server and the CLI depend on it.
 
+mod convert;
+mod defaults;
 mod describe;
 mod form;
 mod rules;
@@ -55,6 +57,39 @@ pub enum Integrator {
     /// Progressive photon mapping (Knaus and Zwicker 2011): independent passes of photon
     /// mapping with fixed-radius estimates whose radius shrinks, averaged.
     Ppm(Progressive),
+    /// Unidirectional path tracing with next-event estimation, the two combined by multiple
+    /// importance sampling (Veach 1997): the camera-side techniques of `vcm` alone.
+    Pt(Passes),
+    /// Light tracing: light subpaths connected to the camera (and the camera's specular
+    /// chains to the lights they see): the camera-connection technique of `vcm` alone.
+    Lt(Passes),
+    /// Bidirectional path tracing (Veach 1997): every vertex connection of `vcm`, without
+    /// merging.
+    Bdpt(Passes),
+    /// Vertex connection and merging (Georgiev, Krivanek, Davidovic and Slusallek 2012):
+    /// bidirectional path tracing and photon density estimation between the two subpaths,
+    /// combined by multiple importance sampling, with a merge radius that shrinks as ppm's.
+    Vcm(Merging),
+}
+
+/// The passes of a bidirectional integrator: each pass traces one light subpath per camera
+/// sample (Georgiev et al. 2012), so a pass is a sample per pixel and the image converges
+/// as passes add up.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Passes {
+    /// Camera samples per pixel in a pass (each with a light subpath of its own).
+    pub spp: u32,
+    pub stop: Stop,
+}
+
+/// `vcm`'s passes and its merge radius: r_{i+1}^2 = r_i^2 (i + alpha) / (i + 1), as ppm's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Merging {
+    pub passes: Passes,
+    pub alpha: f64,
+    /// Initial merge radius (scene units); `None`: from the k-NN distances of the first
+    /// pass's light vertices.
+    pub radius: Option<f32>,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -177,77 +212,6 @@ impl SpecError {
     }
 }
 
-/// The defaults of each integrator: the one place they are written.
-impl PhotonMapping {
-    /// `photon`'s defaults.
-    pub const PHOTON: PhotonMapping = PhotonMapping {
-        photons: 200_000,
-        caustic_photons: 200_000,
-        k: 50,
-        photon_store: PhotonStore::Indirect,
-        gather_rays: 8,
-        spp: 4,
-        aim_caustics: true,
-    };
-
-    /// A `ppm` pass's defaults: one sample per pixel and no final gathering (the passes
-    /// average both out), fewer photons a pass, and a small k, which only sets the initial
-    /// radius: a small k starts with little blur and the passes average its noise away
-    /// (k = 10 against 50: block_err 0.014 against 0.020 after 64 passes on the caustic
-    /// scene; docs/accuracy.md).
-    pub const PPM_PASS: PhotonMapping = PhotonMapping {
-        photons: 100_000,
-        caustic_photons: 100_000,
-        k: 10,
-        gather_rays: 0,
-        spp: 1,
-        ..PhotonMapping::PHOTON
-    };
-}
-
-impl Raytrace {
-    pub const DEFAULT: Raytrace = Raytrace { spp: 4 };
-}
-
-impl Progressive {
-    pub const DEFAULT: Progressive = Progressive {
-        pass: PhotonMapping::PPM_PASS,
-        alpha: 0.7,
-        radius: None,
-        stop: Stop {
-            iterations: 16,
-            time_limit: None,
-            target_error: None,
-        },
-    };
-}
-
-impl Integrator {
-    /// Every integrator with its defaults, the default one (`photon`) first.
-    pub const ALL: [Integrator; 3] = [
-        Integrator::Photon(PhotonMapping::PHOTON),
-        Integrator::Raytrace(Raytrace::DEFAULT),
-        Integrator::Ppm(Progressive::DEFAULT),
-    ];
-
-    /// The name the REST form and the CLI use.
-    pub fn name(&self) -> IntegratorName {
-        match self {
-            Integrator::Raytrace(_) => IntegratorName::Raytrace,
-            Integrator::Photon(_) => IntegratorName::Photon,
-            Integrator::Ppm(_) => IntegratorName::Ppm,
-        }
-    }
-
-    /// The integrator of this name, with its defaults.
-    pub fn default_of(name: IntegratorName) -> Integrator {
-        Integrator::ALL
-            .into_iter()
-            .find(|i| i.name() == name)
-            .expect("every name has an integrator")
-    }
-}
-
 impl RenderSpec {
     /// The spec of an integrator with every other setting at its default.
     pub fn new(integrator: Integrator) -> RenderSpec {
@@ -279,18 +243,43 @@ impl RenderSpec {
     /// integrators that trace no photons.
     pub fn photon_mapping(&self) -> Option<&PhotonMapping> {
         match &self.integrator {
-            Integrator::Raytrace(_) => None,
+            Integrator::Raytrace(_)
+            | Integrator::Pt(_)
+            | Integrator::Lt(_)
+            | Integrator::Bdpt(_)
+            | Integrator::Vcm(_) => None,
             Integrator::Photon(p) => Some(p),
             Integrator::Ppm(p) => Some(&p.pass),
         }
     }
 
+    /// The passes of a bidirectional integrator.
+    pub fn passes(&self) -> Option<&Passes> {
+        match &self.integrator {
+            Integrator::Raytrace(_) | Integrator::Photon(_) | Integrator::Ppm(_) => None,
+            Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) => Some(p),
+            Integrator::Vcm(m) => Some(&m.passes),
+        }
+    }
+
+    /// The radius schedule of an integrator that merges (density estimation with a radius
+    /// that shrinks over passes): alpha and the initial radius.
+    pub fn merge_radius(&self) -> Option<(f64, Option<f32>)> {
+        match &self.integrator {
+            Integrator::Ppm(p) => Some((p.alpha, p.radius)),
+            Integrator::Vcm(m) => Some((m.alpha, m.radius)),
+            _ => None,
+        }
+    }
+
     /// Samples per pixel (per pass, for a progressive integrator).
     pub fn spp(&self) -> u32 {
-        match &self.integrator {
-            Integrator::Raytrace(r) => r.spp,
-            Integrator::Photon(p) => p.spp,
-            Integrator::Ppm(p) => p.pass.spp,
+        match (&self.integrator, self.passes()) {
+            (_, Some(p)) => p.spp,
+            (Integrator::Raytrace(r), _) => r.spp,
+            (Integrator::Photon(p), _) => p.spp,
+            (Integrator::Ppm(p), _) => p.pass.spp,
+            _ => unreachable!("the bidirectional integrators have passes"),
         }
     }
 
@@ -299,6 +288,7 @@ impl RenderSpec {
         match &self.integrator {
             Integrator::Raytrace(_) | Integrator::Photon(_) => None,
             Integrator::Ppm(p) => Some(&p.stop),
+            _ => self.passes().map(|p| &p.stop),
         }
     }
 
@@ -321,12 +311,18 @@ impl RenderSpec {
     }
 }
 
-/// The names of the progressive integrators, for messages about what only they take.
-pub fn progressive_names() -> String {
+/// The names of the integrators whose default spec has `what`, for messages about what
+/// only they take.
+pub fn names_where(what: impl Fn(&RenderSpec) -> bool) -> String {
     let names: Vec<&str> = Integrator::ALL
         .iter()
-        .filter(|i| RenderSpec::new((*i).clone()).is_progressive())
+        .filter(|i| what(&RenderSpec::new((*i).clone())))
         .map(|i| i.name().as_str())
         .collect();
     names.join(", ")
+}
+
+/// The names of the progressive integrators.
+pub fn progressive_names() -> String {
+    names_where(RenderSpec::is_progressive)
 }

@@ -12,7 +12,7 @@ pub const MAX_PHOTONS: u64 = 1_000_000_000;
 
 /// Most passes of a progressive render (a pass costs at least a photon trace and a camera
 /// pass).
-const MAX_ITERATIONS: u64 = 1_000_000;
+pub const MAX_ITERATIONS: u32 = 1_000_000;
 
 /// What values a number may take.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -35,6 +35,19 @@ pub enum Scope {
     Any,
     /// Progressive integrators only: an error elsewhere.
     Progressive,
+    /// Integrators that merge with a shrinking radius (ppm, vcm) only: an error elsewhere.
+    Merging,
+}
+
+impl Scope {
+    /// Whether `spec`'s integrator reads a field of this scope.
+    pub fn read_by(self, spec: &super::RenderSpec) -> bool {
+        match self {
+            Scope::Any => true,
+            Scope::Progressive => spec.is_progressive(),
+            Scope::Merging => spec.merge_radius().is_some(),
+        }
+    }
 }
 
 #[derive(Debug)]
@@ -66,9 +79,13 @@ pub const RULES: &[Rule] = &[
     rule("gather_rays", Scope::Any, int(0, 65_536)),
     rule("spp", Scope::Any, int(1, 65_536)),
     rule("max_depth", Scope::Any, int(1, 1024)),
-    rule("iterations", Scope::Progressive, int(1, MAX_ITERATIONS)),
-    rule("alpha", Scope::Progressive, Range::OpenUnit),
-    rule("radius", Scope::Progressive, Range::Positive),
+    rule(
+        "iterations",
+        Scope::Progressive,
+        int(1, MAX_ITERATIONS as u64),
+    ),
+    rule("alpha", Scope::Merging, Range::OpenUnit),
+    rule("radius", Scope::Merging, Range::Positive),
     rule("time_limit", Scope::Progressive, Range::Positive),
     rule("target_error", Scope::Progressive, Range::Positive),
     rule(

@@ -46,6 +46,10 @@ fn every_integrator_gives_the_cli_s_bytes_over_rest() {
                "gather_rays": 2, "spp": 1, "seed": 7, "effects": {"direct_light": false}}),
         json!({"integrator": "ppm", "photons": 10000, "caustic_photons": 10000,
                "iterations": 3, "alpha": 0.6, "photon_store": "all"}),
+        json!({"integrator": "pt", "iterations": 2, "spp": 2}),
+        json!({"integrator": "lt", "iterations": 2}),
+        json!({"integrator": "bdpt", "iterations": 2, "max_depth": 5}),
+        json!({"integrator": "vcm", "iterations": 3, "alpha": 0.6, "seed": 3}),
     ];
     for mut params in jobs {
         params["width"] = json!(40);

@@ -6,9 +6,9 @@
 
 use super::{IRRADIANCE_STRIDE, PathClass, Photon, PhotonStore};
 use crate::render::geometry::{PrimHit, Ray, Surface, spawn_ray};
-use crate::render::light::{Emission, Light};
+use crate::render::light::{Emission, LightPicker};
 use crate::render::material::Transport;
-use crate::render::math::{Rgb, luminance, max_component};
+use crate::render::math::{Rgb, max_component};
 use crate::render::sampling::{Sampler, Stream, splitmix64};
 use crate::render::scene::Scene;
 
@@ -36,41 +36,6 @@ impl Target {
             Target::Global(store) => store.keeps(class),
             Target::Caustic => class == PathClass::Caustic,
         }
-    }
-}
-
-/// Light-selection table: cumulative luminance of the lights' power, dark lights left out.
-pub(super) struct LightPicker {
-    cdf: Vec<f32>,
-    pub(super) total: f32,
-}
-
-impl LightPicker {
-    pub(super) fn new(lights: &[Light], dark: &[u32]) -> LightPicker {
-        let mut cdf = Vec::with_capacity(lights.len());
-        let mut acc = 0.0;
-        for (i, l) in lights.iter().enumerate() {
-            if !dark.contains(&(i as u32)) {
-                acc += luminance(l.power()).max(0.0);
-            }
-            cdf.push(acc);
-        }
-        LightPicker { cdf, total: acc }
-    }
-
-    /// The light for `u` in [0, 1) and its selection probability.
-    fn pick(&self, u: f32) -> (usize, f32) {
-        let x = u * self.total;
-        // x can round up to the total: then the last light with any power (never one with
-        // none, whose probability 0 would divide a photon's flux).
-        let i = self.cdf.partition_point(|&c| c <= x);
-        let i = if i < self.cdf.len() {
-            i
-        } else {
-            self.cdf.partition_point(|&c| c < self.total)
-        };
-        let prev = if i == 0 { 0.0 } else { self.cdf[i - 1] };
-        (i, (self.cdf[i] - prev) / self.total)
     }
 }
 

@@ -6,9 +6,10 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::path::{LightPicker, PathSetup, PhotonPath, Target};
+use super::path::{PathSetup, PhotonPath, Target};
 use super::{PathClass, Photon, PhotonMap, PhotonMaps};
 use crate::render::control::{Cancelled, Control, Phase};
+use crate::render::light::LightPicker;
 use crate::render::math::luminance_f64;
 use crate::render::sampling::Stream;
 use crate::render::scene::Scene;

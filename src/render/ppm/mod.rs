@@ -17,7 +17,7 @@ mod passes;
 mod state;
 
 pub use crate::render::stats::{PassStats, PassTotals, PpmReport, StopReason};
-pub(crate) use passes::{PpmRun, render_ppm};
+pub(crate) use passes::PpmPasses;
 pub use state::{PpmState, StateError, kept_in_history};
 
 use crate::render::photon::{KnnScratch, PhotonMap};

@@ -140,7 +140,7 @@ impl PpmState {
     }
 
     /// Record a finished pass's statistics.
-    pub(super) fn record(&mut self, p: PassStats) {
+    pub(crate) fn record(&mut self, p: PassStats) {
         self.totals.photon_trace += p.photon_trace;
         self.totals.build_maps += p.build_maps;
         self.totals.render += p.render;
@@ -150,7 +150,7 @@ impl PpmState {
         self.last = Some(p);
     }
 
-    pub(super) fn add_pass(&mut self, pass: &Image) {
+    pub(crate) fn add_pass(&mut self, pass: &Image) {
         for (s, p) in self.sum.iter_mut().zip(&pass.pixels) {
             for c in 0..3 {
                 s[c] += p[c] as f64;

@@ -41,10 +41,29 @@ impl Needs {
         let film = pixels * 48 * (1 + progressive);
         let geometry = triangles as u64 * 1200;
         Needs {
-            memory_bytes: maps + irradiance + film + geometry + (16 << 20),
+            memory_bytes: maps
+                + irradiance
+                + film
+                + light_vertices(spec, pixels)
+                + geometry
+                + (16 << 20),
             work: work(spec, pixels),
             result_bytes: pixels * 20 + progressive * pixels * 24 + (64 << 10),
         }
+    }
+}
+
+/// The light vertices a bidirectional iteration keeps (one subpath per pixel, a few vertices
+/// each, about 100 bytes a vertex, twice with the merging's kd-tree) and its splat image.
+fn light_vertices(spec: &RenderSpec, pixels: u64) -> u64 {
+    match &spec.integrator {
+        Integrator::Raytrace(_)
+        | Integrator::Photon(_)
+        | Integrator::Ppm(_)
+        | Integrator::Pt(_) => 0,
+        Integrator::Lt(_) => pixels * 12,
+        Integrator::Bdpt(_) => pixels * (12 + 4 * 100),
+        Integrator::Vcm(_) => pixels * (12 + 2 * 4 * 100),
     }
 }
 
@@ -61,6 +80,12 @@ fn work(spec: &RenderSpec, pixels: u64) -> f64 {
             let photons = (p.pass.photons + p.pass.caustic_photons) as f64;
             (camera(p.pass.spp, p.pass.gather_rays) + photons) * p.stop.iterations as f64
         }
+        // A light and a camera subpath per sample, each a few rays (the connections and
+        // shadow rays of its vertices): counted as 8 rays a sample.
+        Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) => {
+            camera(p.spp, 7) * p.stop.iterations as f64
+        }
+        Integrator::Vcm(m) => camera(m.passes.spp, 7) * m.passes.stop.iterations as f64,
     }
 }
 
@@ -94,6 +119,11 @@ impl ProgressModel {
                 let passes = p.stop.iterations as f64;
                 ([photons / 3e6, photons / 1e7, 0.0, camera], passes)
             }
+            // The camera pass carries a pass's progress (light subpaths are part of it).
+            Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) => {
+                ([0.0, 0.0, 0.0, 1.0], p.stop.iterations as f64)
+            }
+            Integrator::Vcm(m) => ([0.0, 0.0, 0.0, 1.0], m.passes.stop.iterations as f64),
         };
         ProgressModel { weights, passes }
     }

@@ -11,13 +11,15 @@ pub use budget::{Needs, ProgressModel};
 use std::ops::ControlFlow;
 use std::sync::Arc;
 
+use crate::render::bidir::{BidirPasses, Modes};
 use crate::render::control::{Cancelled, Control};
 use crate::render::effects::{Analysis, analyse};
 use crate::render::film::Image;
 use crate::render::oneshot::render_with_maps;
 use crate::render::outcome::{RenderError, RenderOutput};
 use crate::render::photon::{PhotonMaps, PhotonParams, build_photon_maps};
-use crate::render::ppm::{PpmRun, PpmState, render_ppm};
+use crate::render::ppm::{PpmPasses, PpmState};
+use crate::render::progressive::{Progression, ProgressiveRun, run_passes};
 use crate::render::scene::Scene;
 use crate::spec::{Integrator, RenderSpec, SpecForm};
 
@@ -118,20 +120,30 @@ pub fn run(
     spec.validate()?;
     check_reference(scene, spec, inputs.reference)?;
     let analysis = analyse(scene, spec);
-    match &spec.integrator {
+    let (width, height) = spec.resolution((scene.camera.width, scene.camera.height));
+    let camera = scene.camera.clone().with_resolution(width, height);
+    let bidir = |modes| BidirPasses::new(scene, spec, &analysis, camera.clone(), modes);
+    let mut progression: Box<dyn Progression> = match &spec.integrator {
         Integrator::Raytrace(_) | Integrator::Photon(_) => {
-            one_shot(scene, spec, &analysis, inputs, control)
+            return one_shot(scene, spec, &analysis, inputs, control);
         }
-        Integrator::Ppm(ppm) => {
-            let fingerprint = fingerprint(inputs.scene_key, spec);
-            let run = PpmRun {
-                reference: inputs.reference,
-                resume: inputs.resume,
-                fingerprint,
-            };
-            render_ppm(scene, spec, ppm, &analysis, run, control, on_pass)
-        }
-    }
+        Integrator::Ppm(ppm) => Box::new(PpmPasses::new(scene, spec, ppm, &analysis, camera)),
+        Integrator::Pt(_) => Box::new(bidir(Modes::Pt)),
+        Integrator::Lt(_) => Box::new(bidir(Modes::Lt)),
+        Integrator::Bdpt(_) => Box::new(bidir(Modes::Bdpt)),
+        Integrator::Vcm(_) => Box::new(bidir(Modes::Vcm)),
+    };
+    let stop = spec.stop().expect("the progressive integrators stop");
+    let run = ProgressiveRun {
+        reference: inputs.reference,
+        resume: inputs.resume,
+        fingerprint: fingerprint(inputs.scene_key, spec),
+        stop,
+        seed: spec.seed,
+        radius: spec.merge_radius().map(|(alpha, r)| (alpha, r.is_some())),
+        size: (width, height),
+    };
+    run_passes(progression.as_mut(), run, control, on_pass)
 }
 
 /// [`run`] with maps traced now, no reference, no state and no per-pass hook.

@@ -1,0 +1,198 @@
+//! The pass loop every progressive integrator shares (ppm, and the bidirectional family):
+//! start or resume the state, run passes until a stop condition or the caller says enough,
+//! add each pass's image to the state's f64 sum, shrink the radii by Knaus and Zwicker's
+//! schedule, and report. Pass i draws its random numbers from `pass_seed(seed, i)` alone,
+//! so a render stopped and resumed gives the same bytes as one that never stopped.
+
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use crate::render::accuracy::{ImageError, compare};
+use crate::render::control::{Control, Phase};
+use crate::render::film::Image;
+use crate::render::outcome::{RenderError, RenderOutput};
+use crate::render::ppm::{PpmState, next_r2, pass_seed};
+use crate::render::stats::{PassStats, PpmReport, RenderStats, StopReason, Times};
+use crate::spec::Stop;
+
+/// What one pass made.
+pub(crate) struct PassOutput {
+    pub image: Image,
+    pub nonfinite_samples: u64,
+    /// The radii the pass's estimates read with (global, caustic; 0 where none).
+    pub radii: (f64, f64),
+    pub photon_trace: f64,
+    pub build_maps: f64,
+    pub render: f64,
+    /// Photons (or light vertices) the pass stored, in its global and caustic maps.
+    pub stored: (u64, u64),
+}
+
+/// Which pass, and its random seed.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PassAt {
+    pub pass: u32,
+    pub seed: u64,
+}
+
+pub(crate) type PassResult = Result<PassOutput, RenderError>;
+
+/// A progressive integrator: its passes and what it reports.
+pub(crate) trait Progression {
+    /// Render pass `at.pass` (1-based) from random seed `at.seed`, reading its estimates
+    /// with the state's squared radii. Pass 1 sets the state's initial radii (and squared
+    /// radii) first, when the integrator has any.
+    fn pass(&mut self, state: &mut PpmState, at: PassAt, control: &Control) -> PassResult;
+
+    /// The render's statistics but for its times, error and progressive section.
+    fn stats(&self, state: &PpmState) -> RenderStats;
+}
+
+/// What a progressive render needs besides its integrator.
+pub(crate) struct ProgressiveRun<'a> {
+    pub reference: Option<&'a Image>,
+    /// A state to continue from.
+    pub resume: Option<PpmState>,
+    /// Identifies the scene and spec (`render::fingerprint`); a state resumes only a
+    /// render with the same one.
+    pub fingerprint: String,
+    pub stop: &'a Stop,
+    /// The render's seed: pass i draws from `pass_seed(seed, i)`.
+    pub seed: u64,
+    /// The radius schedule's alpha (integrators that merge), and whether the initial radius
+    /// was given.
+    pub radius: Option<(f64, bool)>,
+    pub size: (u32, u32),
+}
+
+/// Render passes until `run.stop` says enough (or `on_pass`, called with the state after
+/// every pass, breaks).
+pub(crate) fn run_passes(
+    integrator: &mut dyn Progression,
+    run: ProgressiveRun,
+    control: &Control,
+    on_pass: &mut dyn FnMut(&PpmState) -> ControlFlow<()>,
+) -> Result<RenderOutput, RenderError> {
+    let mut state = start_state(run.resume, &run.fingerprint, run.size)?;
+    let tracker = control.tracker(Phase::Passes, run.stop.iterations as u64);
+    tracker.advance(state.passes as u64);
+    // The error of the image so far against this render's reference (a resumed state's
+    // recorded error may be against another one).
+    let mut error = match run.reference {
+        Some(r) if state.passes > 0 => compare(&state.image(), r).ok(),
+        _ => None,
+    };
+    let stopped_by = loop {
+        if let Some(reason) = should_stop(&state, run.stop, error) {
+            break reason;
+        }
+        control.check()?;
+        let pass = state.passes + 1;
+        let t0 = Instant::now();
+        let at = PassAt {
+            pass,
+            seed: pass_seed(run.seed, pass),
+        };
+        let out = integrator.pass(&mut state, at, control)?;
+        add_pass(&mut state, pass, &out, run.radius.map(|r| r.0));
+        // The pass's time, not counting the comparison with the reference below.
+        let elapsed = state.elapsed() + t0.elapsed().as_secs_f64();
+        error = run.reference.and_then(|r| compare(&state.image(), r).ok());
+        state.record(PassStats {
+            pass,
+            radius_global: out.radii.0,
+            radius_caustic: out.radii.1,
+            photon_trace: out.photon_trace,
+            build_maps: out.build_maps,
+            render: out.render,
+            elapsed,
+            global_stored: out.stored.0,
+            caustic_stored: out.stored.1,
+            error,
+        });
+        tracker.advance(1);
+        if on_pass(&state).is_break() {
+            break StopReason::Paused;
+        }
+    };
+    let mut stats = integrator.stats(&state);
+    sum_times(&mut stats.times, &state);
+    stats.error = error;
+    stats.ppm = Some(PpmReport {
+        alpha: run.radius.map_or(0.0, |r| r.0),
+        passes: state.passes,
+        radius_initial_global: state.radius_initial[0],
+        radius_initial_caustic: state.radius_initial[1],
+        radius_source: match run.radius {
+            Some((_, true)) => "radius",
+            Some((_, false)) => "auto",
+            None => "none",
+        },
+        stopped_by,
+        history: state.history.clone(),
+    });
+    Ok(RenderOutput {
+        image: state.image(),
+        stats,
+    })
+}
+
+/// Add a pass to the state: its image to the sum, and the next pass's radii.
+fn add_pass(state: &mut PpmState, pass: u32, out: &PassOutput, alpha: Option<f64>) {
+    state.add_pass(&out.image);
+    state.passes = pass;
+    state.nonfinite_samples += out.nonfinite_samples;
+    if let Some(alpha) = alpha {
+        state.r2_global = next_r2(state.r2_global, pass, alpha);
+        state.r2_caustic = next_r2(state.r2_caustic, pass, alpha);
+    }
+}
+
+/// A fresh state, or the one to resume if it is this render's.
+fn start_state(
+    resume: Option<PpmState>,
+    fingerprint: &str,
+    (width, height): (u32, u32),
+) -> Result<PpmState, RenderError> {
+    match resume {
+        Some(s) if s.fingerprint != fingerprint || (s.width, s.height) != (width, height) => {
+            Err(RenderError::Input(
+                "the saved state belongs to another scene, resolution or parameters".into(),
+            ))
+        }
+        Some(s) => Ok(s),
+        None => Ok(PpmState::new(fingerprint.to_string(), width, height)),
+    }
+}
+
+/// Whether to stop before another pass.
+fn should_stop(state: &PpmState, stop: &Stop, error: Option<ImageError>) -> Option<StopReason> {
+    if state.passes >= stop.iterations {
+        return Some(StopReason::Iterations);
+    }
+    if state.passes == 0 {
+        return None;
+    }
+    if let (Some(target), Some(e)) = (stop.target_error, error)
+        && e.relmse <= target
+    {
+        return Some(StopReason::TargetError);
+    }
+    if let Some(limit) = stop.time_limit {
+        let elapsed = state.elapsed();
+        let mean_pass = elapsed / state.passes as f64;
+        if elapsed + mean_pass > limit {
+            return Some(StopReason::TimeLimit);
+        }
+    }
+    None
+}
+
+/// Totals over the passes into the render's `times`.
+fn sum_times(t: &mut Times, state: &PpmState) {
+    t.photon_trace = state.totals.photon_trace;
+    t.build_maps = state.totals.build_maps;
+    t.precompute = 0.0;
+    t.render = state.totals.render;
+    t.total = state.elapsed();
+}

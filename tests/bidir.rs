@@ -1,0 +1,136 @@
+//! The bidirectional family (issue 20): `pt`, `lt`, `bdpt` and `vcm`, each alone against
+//! closed-form radiance, and against each other where every technique can carry the scene's
+//! light. (That the weights of the techniques add up to one, so that a broken weight fails
+//! these, is `src/render/bidir/tests.rs`.)
+
+mod common;
+
+use std::f64::consts::PI;
+
+use common::{analytic_pixels, point_lit, rel, render_checked, scene};
+use glam::DVec3;
+use photonbox::spec::{Integrator, Merging, Passes, RenderSpec, Stop};
+
+/// Every integrator of the family, with `passes` passes of one sample per pixel.
+fn family(passes: u32) -> [(&'static str, RenderSpec); 4] {
+    let p = Passes {
+        spp: 1,
+        stop: Stop::after(passes),
+    };
+    let vcm = Merging {
+        passes: p.clone(),
+        ..Merging::DEFAULT
+    };
+    [
+        ("pt", RenderSpec::new(Integrator::Pt(p.clone()))),
+        ("lt", RenderSpec::new(Integrator::Lt(p.clone()))),
+        ("bdpt", RenderSpec::new(Integrator::Bdpt(p))),
+        ("vcm", RenderSpec::new(Integrator::Vcm(vcm))),
+    ]
+}
+
+/// A closed diffuse sphere lit from its centre by a point light: every point sees
+/// L = (a/pi) P/(4 pi R^2) / (1 - a), every bounce included (a furnace: the sum of a
+/// geometric series of bounces, which a missing or doubled technique puts off).
+const CLOSED_SPHERE: &str = r#"{
+    "camera": {"position": [0, 0.4, 0.6], "look_at": [0, -1, -2], "up": [0, 1, 0], "fov": 70,
+               "width": 32, "height": 32},
+    "materials": {"wall": {"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}},
+    "objects": [{"type": "sphere", "material": "wall", "center": [0, 0, 0], "radius": 2}],
+    "lights": [{"type": "point", "position": [0, 0, 0], "power": [10, 10, 10]}]
+}"#;
+
+#[test]
+fn every_technique_renders_the_closed_sphere_within_1_percent() {
+    let want = (0.5 / PI) * 10.0 / (4.0 * PI * 4.0) / 0.5;
+    let s = scene(CLOSED_SPHERE);
+    for (name, spec) in family(256) {
+        let img = render_checked(&s, &spec).image;
+        let mean = img.mean_rgb(0, 0, 32, 32)[0];
+        eprintln!("closed sphere, {name}: mean {:+.5}", rel(mean, want));
+        assert!(
+            rel(mean, want).abs() < 0.01,
+            "{name}: mean {mean:.5} vs {want:.5}"
+        );
+    }
+}
+
+/// A point light over a large diffuse floor seen from above: direct light only.
+const FLOOR: &str = r#"{
+    "camera": {"position": [0, 3, 0], "look_at": [0, 0, 0], "up": [0, 0, -1], "fov": 60,
+               "width": 32, "height": 32},
+    "materials": {"floor": {"type": "diffuse", "albedo": [0.6, 0.6, 0.6]}},
+    "objects": [{"type": "quad", "material": "floor", "corner": [-50, 0, -50],
+                 "edge_u": [0, 0, 100], "edge_v": [100, 0, 0]}],
+    "lights": [{"type": "point", "position": [0.3, 1, -0.2], "power": [50, 50, 50]}]
+}"#;
+
+#[test]
+fn every_technique_renders_the_lit_floor_within_1_percent_per_region() {
+    let s = scene(FLOOR);
+    let light = DVec3::new(0.3, 1.0, -0.2);
+    let want: Vec<f64> = analytic_pixels(&s, |o, d| {
+        let hit = o + d * (-o.y / d.y);
+        Some(point_lit(hit, DVec3::Y, light, 50.0, 0.6))
+    })
+    .into_iter()
+    .map(|v| v.unwrap())
+    .collect();
+    let region = |v: &[f64], x0: usize, y0: usize| {
+        let mut sum = 0.0;
+        for y in y0..y0 + 8 {
+            for x in x0..x0 + 8 {
+                sum += v[y * 32 + x];
+            }
+        }
+        sum / 64.0
+    };
+    for (name, spec) in family(1024) {
+        let img = render_checked(&s, &spec).image;
+        let got: Vec<f64> = img.pixels.iter().map(|p| p[0] as f64).collect();
+        for (x0, y0) in [(0, 0), (12, 12), (24, 8), (8, 24)] {
+            let e = rel(region(&got, x0, y0), region(&want, x0, y0));
+            assert!(e.abs() < 0.01, "{name}, region ({x0}, {y0}): {e:+.4}");
+        }
+    }
+}
+
+/// A box with a sphere light, a glass sphere and a mirror: every technique but light tracing
+/// (which cannot show what the camera sees through glass) carries every path; with an area
+/// light, path tracing reaches the caustics too. The family must agree.
+const GLASS_BOX: &str = r#"{
+    "camera": {"position": [0, 1, 3.2], "look_at": [0, 0.9, 0], "up": [0, 1, 0], "fov": 45,
+               "width": 32, "height": 32},
+    "materials": {"white": {"type": "diffuse", "albedo": [0.7, 0.7, 0.7]},
+                  "red": {"type": "diffuse", "albedo": [0.7, 0.2, 0.2]},
+                  "glass": {"type": "dielectric", "ior": 1.5},
+                  "mirror": {"type": "mirror", "reflectance": [0.9, 0.9, 0.9]}},
+    "objects": [
+        {"type": "quad", "material": "white", "corner": [-1, 0, 1], "edge_u": [2, 0, 0], "edge_v": [0, 0, -2]},
+        {"type": "quad", "material": "white", "corner": [-1, 2, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2]},
+        {"type": "quad", "material": "white", "corner": [-1, 0, -1], "edge_u": [2, 0, 0], "edge_v": [0, 2, 0]},
+        {"type": "quad", "material": "red", "corner": [-1, 0, 1], "edge_u": [0, 0, -2], "edge_v": [0, 2, 0]},
+        {"type": "quad", "material": "white", "corner": [1, 0, -1], "edge_u": [0, 0, 2], "edge_v": [0, 2, 0]},
+        {"type": "sphere", "material": "glass", "center": [-0.4, 0.4, 0], "radius": 0.4},
+        {"type": "sphere", "material": "mirror", "center": [0.5, 0.3, -0.4], "radius": 0.3}],
+    "lights": [{"type": "sphere", "center": [0, 1.6, 0], "radius": 0.15, "radiance": [20, 20, 20]}]
+}"#;
+
+#[test]
+fn path_tracing_bdpt_and_vcm_agree_where_each_carries_every_path() {
+    let s = scene(GLASS_BOX);
+    let [pt, _, bdpt, vcm] = family(256);
+    let mean = |spec: &RenderSpec| {
+        let img = render_checked(&s, spec).image;
+        let m = img.mean_rgb(0, 0, 32, 32);
+        (m[0] + m[1] + m[2]) / 3.0
+    };
+    let (a, b, c) = (mean(&pt.1), mean(&bdpt.1), mean(&vcm.1));
+    eprintln!(
+        "glass box: pt {a:.5}, bdpt {b:.5} ({:+.4}), vcm {c:.5} ({:+.4})",
+        rel(b, a),
+        rel(c, a)
+    );
+    assert!(rel(b, a).abs() < 0.02, "bdpt {b} vs pt {a}");
+    assert!(rel(c, a).abs() < 0.02, "vcm {c} vs pt {a}");
+}
