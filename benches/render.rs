@@ -1,5 +1,6 @@
 //! The render's hot paths on the seed's scene (1): photon tracing throughput (emitted photons
-//! per second, 2 threads), and the camera pass at 512x512, 1 sample per pixel. The seed's
+//! per second, 2 threads), the camera pass at 512x512, 1 sample per pixel, and a pass of the
+//! bidirectional integrators at 256x256. The seed's
 //! whole tables are reproduced by `cargo run --release --bin perf-tables`.
 //!
 //!     cargo bench --bench render
@@ -10,8 +11,8 @@ use std::path::Path;
 use std::sync::Arc;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use photonbox::render::{Control, Inputs, Prebuilt, Scene, run, trace_maps};
-use photonbox::spec::{PhotonMapping, RenderSpec};
+use photonbox::render::{Control, Inputs, Prebuilt, Scene, render, run, trace_maps};
+use photonbox::spec::{Integrator, Merging, Passes, PhotonMapping, RenderSpec, Stop};
 
 fn scene1() -> Scene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json");
@@ -75,5 +76,38 @@ fn camera_pass(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, photon_tracing, camera_pass);
+/// One pass of each bidirectional integrator at 256x256 (a light and a camera subpath per
+/// pixel; `vcm` also builds its kd-tree of light vertices and merges), in samples per second.
+fn bidirectional_pass(c: &mut Criterion) {
+    let scene = scene1();
+    let mut g = c.benchmark_group("bidirectional_pass_scene1_256");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(256 * 256));
+    let passes = Passes {
+        spp: 1,
+        stop: Stop::after(1),
+    };
+    for integrator in [
+        Integrator::Pt(passes.clone()),
+        Integrator::Bdpt(passes.clone()),
+        Integrator::Vcm(Merging {
+            passes: passes.clone(),
+            radius: Some(0.01),
+            ..Merging::DEFAULT
+        }),
+    ] {
+        let name = integrator.name().as_str();
+        let spec = RenderSpec {
+            width: Some(256),
+            height: Some(256),
+            ..RenderSpec::new(integrator)
+        };
+        g.bench_function(name, |b| {
+            b.iter(|| black_box(render(&scene, &spec, &Control::none()).unwrap()))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, photon_tracing, camera_pass, bidirectional_pass);
 criterion_main!(benches);

@@ -134,3 +134,33 @@ fn path_tracing_bdpt_and_vcm_agree_where_each_carries_every_path() {
     assert!(rel(b, a).abs() < 0.02, "bdpt {b} vs pt {a}");
     assert!(rel(c, a).abs() < 0.02, "vcm {c} vs pt {a}");
 }
+
+/// `auto` (issue 20, the default integrator): a room without mirror or glass is path traced,
+/// one with glass is rendered by vcm; the choice is exactly that integrator (the same
+/// bytes) and `effects.integrator` says which and why.
+#[test]
+fn auto_path_traces_a_diffuse_room_and_merges_behind_glass() {
+    let passes = Passes {
+        spp: 1,
+        stop: Stop::after(2),
+    };
+    let vcm = Merging {
+        passes: passes.clone(),
+        ..Merging::DEFAULT
+    };
+    for (text, chosen, explicit) in [
+        (CLOSED_SPHERE, "pt", Integrator::Pt(passes.clone())),
+        (GLASS_BOX, "vcm", Integrator::Vcm(vcm)),
+    ] {
+        let s = scene(text);
+        let auto = render_checked(&s, &RenderSpec::new(Integrator::Auto(passes.clone())));
+        let why = &auto.stats.effects["integrator"];
+        assert_eq!(why.how, format!("auto chose {chosen}"), "{why:?}");
+        assert!(!why.reason.is_empty());
+        let direct = render_checked(&s, &RenderSpec::new(explicit));
+        assert!(
+            auto.image.pixels == direct.image.pixels,
+            "auto's {chosen} image differs from {chosen}'s"
+        );
+    }
+}

@@ -103,7 +103,8 @@ fn cli_no_caustics_traces_no_caustic_photons() {
         .arg(dir.path().join("a.png"))
         .arg("--stats")
         .arg(&stats)
-        .args(["--width", "16", "--height", "16", "--photons", "5000"])
+        .args(["--integrator", "photon", "--width", "16", "--height", "16"])
+        .args(["--photons", "5000"])
         .args(["--no-caustics", "--no-indirect"])
         .output()
         .unwrap();

@@ -102,7 +102,7 @@ async fn a_bad_parameter_is_named_and_a_good_job_is_queued() {
     };
     let (status, v) = call(
         &app,
-        post(json!({"scene_name": "cornell", "params": {"k": 0}})),
+        post(json!({"scene_name": "cornell", "params": {"integrator": "photon", "k": 0}})),
     )
     .await;
     assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{v}");

@@ -13,7 +13,7 @@ use std::process::Command;
 #[allow(dead_code)] // the server half of the harness
 mod harness;
 
-use harness::{Server, client};
+use harness::{Server, client, metrics};
 
 /// The schemathesis command line: `$PHOTONBOX_SCHEMATHESIS`, else `st` on the PATH
 /// (tests/run.sh installs it in a virtual environment and sets the variable).
@@ -55,8 +55,15 @@ fn schemathesis_finds_no_server_error_and_no_answer_outside_the_document() {
         serde_json::from_slice(&std::fs::read(&report).unwrap_or_default())
             .unwrap_or_else(|e| panic!("no JSON report ({e}):\n{}", tail.join("\n")));
     let cases = &summary["test_cases"];
+    // Requests the server answered, by its own count (test cases may send several).
+    let requests: u64 = metrics(&s)
+        .lines()
+        .filter(|l| l.starts_with("photonbox_http_requests_total{"))
+        .filter_map(|l| l.rsplit(' ').next()?.parse::<u64>().ok())
+        .sum();
     eprintln!(
-        "schemathesis: {} test cases generated over {} operations; failures: {}",
+        "schemathesis: {} test cases generated over {} operations, {requests} requests \
+         answered; failures: {}",
         cases["generated"], summary["operations"]["tested"], summary["failures"]
     );
     assert!(

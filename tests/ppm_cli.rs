@@ -101,7 +101,16 @@ fn resumed_cli_render_gives_the_same_bytes() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("another scene"));
     // ppm-only flags are refused elsewhere.
-    let o = run(&["render", &scene, "-o", "/dev/null", "--time-limit", "3"]);
+    let o = run(&[
+        "render",
+        &scene,
+        "-o",
+        "/dev/null",
+        "--integrator",
+        "photon",
+        "--time-limit",
+        "3",
+    ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--time-limit is only for"));
 }

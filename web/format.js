@@ -25,7 +25,7 @@ export function fmtTime(t) {
 }
 
 export function integratorOf(job) {
-  return (job.params && job.params.integrator) || "photon";
+  return (job.params && job.params.integrator) || "auto";
 }
 
 /// The parameters that matter most for what a job costs and shows.

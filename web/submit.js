@@ -13,19 +13,22 @@ const SPEC_FIELDS = {
 
 /// Presets, per integrator: the fields they set, over the integrator's defaults (`good` is
 /// the defaults themselves, as the server's spec has them), and the scale of the scene's own
-/// resolution.
+/// resolution. `passes` serves every integrator not named (auto and the bidirectional
+/// family: a number of passes).
 const PRESETS = {
   draft: {
     photon: { photons: 50000, caustic_photons: 50000, k: 30, gather_rays: 0, spp: 1 },
     ppm: { photons: 20000, caustic_photons: 20000, iterations: 8 },
     raytrace: { spp: 1 },
+    passes: { iterations: 4 },
     scale: 0.5,
   },
-  good: { photon: {}, ppm: { iterations: 32 }, raytrace: {}, scale: 1 },
+  good: { photon: {}, ppm: { iterations: 32 }, raytrace: {}, passes: {}, scale: 1 },
   final: {
     photon: { photons: 1000000, caustic_photons: 1000000, k: 100, gather_rays: 16, spp: 16 },
     ppm: { photons: 200000, caustic_photons: 200000, iterations: 256 },
     raytrace: { spp: 16 },
+    passes: { iterations: 256 },
     scale: 2,
   },
 };
@@ -42,7 +45,7 @@ function fillSpecFields(integ, values) {
 function applyPreset(name) {
   const preset = PRESETS[name];
   const integ = $("integrator").value;
-  fillSpecFields(integ, preset[integ]);
+  fillSpecFields(integ, preset[integ] || preset.passes);
   const [w, h] = sceneSize();
   $("width").value = Math.max(1, Math.round(w * preset.scale));
   $("height").value = Math.max(1, Math.round(h * preset.scale));
@@ -126,6 +129,7 @@ const INTEGRATORS = {
   photon: "photon (photon maps)", raytrace: "raytrace (direct light only)",
   ppm: "ppm (progressive photon mapping)", pt: "pt (path tracing)", lt: "lt (light tracing)",
   bdpt: "bdpt (bidirectional path tracing)", vcm: "vcm (vertex connection and merging)",
+  auto: "auto (the scene's choice: pt, bdpt or vcm)",
 };
 
 /// The integrator choice: every integrator the server's spec has, its default first.

@@ -3,7 +3,7 @@
 //! integrator's) and [`SpecForm::of`] (every field the spec's integrator reads).
 
 use super::form::{EffectsForm, IntegratorName, SpecForm};
-use super::rules::{RULES, check_numbers, rule_of};
+use super::rules::{Scope, check_numbers, scope_of, scopes};
 use super::{
     EffectSwitches, Integrator, Passes, PhotonMapping, PhotonStore, Progressive, Raytrace,
     RenderSpec, SPEC_VERSION, SpecError, Stop,
@@ -44,9 +44,9 @@ impl SpecForm {
     }
 
     /// The typed spec: defaults of the named integrator for what is not given, every range
-    /// checked, and no setting of another integrator's (the default integrator's settings
-    /// are accepted by every integrator, so a client can switch integrators without clearing
-    /// them; those an integrator does not read are ignored). `has_reference`: whether a
+    /// checked, and no setting of another integrator's (settings of every integrator's
+    /// scope, `Scope::Any`, are accepted by each and ignored by those that do not read
+    /// them). `has_reference`: whether a
     /// reference image comes with the render (`target_error` needs one).
     pub fn to_spec(&self, has_reference: bool) -> Result<RenderSpec, SpecError> {
         let f = self.normalized();
@@ -59,16 +59,20 @@ impl SpecForm {
             ));
         }
         check_numbers(&f)?;
-        let name = f.integrator.unwrap_or(IntegratorName::Photon);
+        let name = f.integrator.unwrap_or(IntegratorName::DEFAULT);
         let mut spec = RenderSpec::new(Integrator::default_of(name));
         for field in f.given() {
-            if let Some(rule) = rule_of(&field)
-                && !rule.scope.read_by(&spec)
+            if let Some((field, scope)) = scope_of(&field)
+                && !scope.read_by(&spec)
             {
-                let names = super::names_where(|s| rule.scope.read_by(s));
+                let names = super::names_where(|s| scope.read_by(s));
+                let default = match f.integrator {
+                    None => format!(" (the default integrator is {})", name.as_str()),
+                    Some(_) => String::new(),
+                };
                 return Err(SpecError::new(
-                    rule.field,
-                    format!("is only for integrator {names}"),
+                    field,
+                    format!("is only for integrator {names}{default}"),
                 ));
             }
         }
@@ -91,7 +95,9 @@ impl SpecForm {
                 f.fill_radius(&mut p.alpha, &mut p.radius);
                 f.fill_stop(&mut p.stop);
             }
-            Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) => f.fill_passes(p),
+            Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) | Integrator::Auto(p) => {
+                f.fill_passes(p)
+            }
             Integrator::Vcm(m) => {
                 f.fill_passes(&mut m.passes);
                 f.fill_radius(&mut m.alpha, &mut m.radius);
@@ -162,7 +168,9 @@ impl SpecForm {
                 f.set_stop(stop);
                 (f.alpha, f.radius) = (Some(*alpha), *radius);
             }
-            Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) => f.set_passes(p),
+            Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) | Integrator::Auto(p) => {
+                f.set_passes(p)
+            }
             Integrator::Vcm(m) => {
                 f.set_passes(&m.passes);
                 (f.alpha, f.radius) = (Some(m.alpha), m.radius);
@@ -194,17 +202,19 @@ impl SpecForm {
     /// This form without the fields its integrator does not read (a sweep's shared flags
     /// over a grid that mixes integrators).
     pub fn only_fields_of_its_integrator(&self) -> SpecForm {
-        let name = self.integrator.unwrap_or(IntegratorName::Photon);
+        let name = self.integrator.unwrap_or(IntegratorName::DEFAULT);
         let spec = RenderSpec::new(Integrator::default_of(name));
         let mut value = serde_json::to_value(self).expect("a form serializes");
         if let Some(map) = value.as_object_mut() {
-            for r in RULES.iter().filter(|r| !r.scope.read_by(&spec)) {
-                map.remove(r.field);
+            for (field, _) in scopes().filter(|(_, scope)| !scope.read_by(&spec)) {
+                map.remove(field);
             }
         }
         let mut f: SpecForm = serde_json::from_value(value).expect("a form reads back");
-        // The CLI's switches are not in the serialized form: keep them.
-        (f.blind_caustics, f.no_direct_light) = (self.blind_caustics, self.no_direct_light);
+        // The CLI's switches are not in the serialized form: keep those it reads.
+        let aims = Scope::PhotonMaps.read_by(&spec);
+        f.blind_caustics = self.blind_caustics && aims;
+        f.no_direct_light = self.no_direct_light;
         (f.no_caustics, f.no_diffuse_interreflection) =
             (self.no_caustics, self.no_diffuse_interreflection);
         f

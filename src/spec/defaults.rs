@@ -73,8 +73,10 @@ impl Merging {
 }
 
 impl Integrator {
-    /// Every integrator with its defaults, the default one (`photon`) first.
-    pub const ALL: [Integrator; 7] = [
+    /// Every integrator with its defaults, the default one (`auto`, [`IntegratorName::DEFAULT`])
+    /// first.
+    pub const ALL: [Integrator; 8] = [
+        Integrator::Auto(Passes::DEFAULT),
         Integrator::Photon(PhotonMapping::PHOTON),
         Integrator::Raytrace(Raytrace::DEFAULT),
         Integrator::Ppm(Progressive::DEFAULT),
@@ -94,6 +96,7 @@ impl Integrator {
             Integrator::Lt(_) => IntegratorName::Lt,
             Integrator::Bdpt(_) => IntegratorName::Bdpt,
             Integrator::Vcm(_) => IntegratorName::Vcm,
+            Integrator::Auto(_) => IntegratorName::Auto,
         }
     }
 

@@ -77,12 +77,12 @@ mod tests {
         );
         assert_eq!(
             default_text("spp").as_deref(),
-            Some("4 (ppm, pt, lt, bdpt, vcm: 1)")
+            Some("1 (photon, raytrace: 4)")
         );
         assert_eq!(default_text("alpha").as_deref(), Some("0.7 (vcm: 0.75)"));
         assert_eq!(default_text("iterations").as_deref(), Some("16"));
         assert_eq!(default_text("max_depth").as_deref(), Some("32"));
-        assert_eq!(default_text("integrator").as_deref(), Some("photon"));
+        assert_eq!(default_text("integrator").as_deref(), Some("auto"));
         assert_eq!(default_text("width"), None);
     }
 }

@@ -20,9 +20,13 @@ pub enum IntegratorName {
     Lt,
     Bdpt,
     Vcm,
+    Auto,
 }
 
 impl IntegratorName {
+    /// The integrator of a spec that names none (issue 20: the scene's choice).
+    pub const DEFAULT: IntegratorName = IntegratorName::Auto;
+
     pub fn as_str(self) -> &'static str {
         match self {
             IntegratorName::Raytrace => "raytrace",
@@ -32,6 +36,7 @@ impl IntegratorName {
             IntegratorName::Lt => "lt",
             IntegratorName::Bdpt => "bdpt",
             IntegratorName::Vcm => "vcm",
+            IntegratorName::Auto => "auto",
         }
     }
 }

@@ -70,6 +70,9 @@ pub enum Integrator {
     /// bidirectional path tracing and photon density estimation between the two subpaths,
     /// combined by multiple importance sampling, with a merge radius that shrinks as ppm's.
     Vcm(Merging),
+    /// The integrator the scene calls for, chosen when the render starts (`render/run`):
+    /// these passes of `pt`, `bdpt` or `vcm`.
+    Auto(Passes),
 }
 
 /// The passes of a bidirectional integrator: each pass traces one light subpath per camera
@@ -247,7 +250,8 @@ impl RenderSpec {
             | Integrator::Pt(_)
             | Integrator::Lt(_)
             | Integrator::Bdpt(_)
-            | Integrator::Vcm(_) => None,
+            | Integrator::Vcm(_)
+            | Integrator::Auto(_) => None,
             Integrator::Photon(p) => Some(p),
             Integrator::Ppm(p) => Some(&p.pass),
         }
@@ -257,7 +261,9 @@ impl RenderSpec {
     pub fn passes(&self) -> Option<&Passes> {
         match &self.integrator {
             Integrator::Raytrace(_) | Integrator::Photon(_) | Integrator::Ppm(_) => None,
-            Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) => Some(p),
+            Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) | Integrator::Auto(p) => {
+                Some(p)
+            }
             Integrator::Vcm(m) => Some(&m.passes),
         }
     }

@@ -33,6 +33,9 @@ pub enum Scope {
     /// Every integrator, or the default integrator's settings (accepted by every
     /// integrator; ignored by those that do not read them).
     Any,
+    /// Integrators that trace photon maps (photon, ppm) only: an error elsewhere (the
+    /// default integrator, auto, reads none of them).
+    PhotonMaps,
     /// Progressive integrators only: an error elsewhere.
     Progressive,
     /// Integrators that merge with a shrinking radius (ppm, vcm) only: an error elsewhere.
@@ -44,6 +47,7 @@ impl Scope {
     pub fn read_by(self, spec: &super::RenderSpec) -> bool {
         match self {
             Scope::Any => true,
+            Scope::PhotonMaps => spec.photon_mapping().is_some(),
             Scope::Progressive => spec.is_progressive(),
             Scope::Merging => spec.merge_radius().is_some(),
         }
@@ -73,10 +77,10 @@ const fn int(min: u64, max: u64) -> Range {
 pub const RULES: &[Rule] = &[
     rule("width", Scope::Any, int(1, MAX_IMAGE_SIDE as u64)),
     rule("height", Scope::Any, int(1, MAX_IMAGE_SIDE as u64)),
-    rule("photons", Scope::Any, int(0, MAX_PHOTONS)),
-    rule("caustic_photons", Scope::Any, int(0, MAX_PHOTONS)),
-    rule("k", Scope::Any, int(1, 100_000)),
-    rule("gather_rays", Scope::Any, int(0, 65_536)),
+    rule("photons", Scope::PhotonMaps, int(0, MAX_PHOTONS)),
+    rule("caustic_photons", Scope::PhotonMaps, int(0, MAX_PHOTONS)),
+    rule("k", Scope::PhotonMaps, int(1, 100_000)),
+    rule("gather_rays", Scope::PhotonMaps, int(0, 65_536)),
     rule("spp", Scope::Any, int(1, 65_536)),
     rule("max_depth", Scope::Any, int(1, 1024)),
     rule(
@@ -101,6 +105,24 @@ pub const RULES: &[Rule] = &[
 /// The rule of a field, if it is a number.
 pub fn rule_of(field: &str) -> Option<&'static Rule> {
     RULES.iter().find(|r| r.field == field)
+}
+
+/// The fields of the form that are not numbers and that only some integrators read.
+const SCOPED_CHOICES: &[(&str, Scope)] = &[
+    ("photon_store", Scope::PhotonMaps),
+    ("aim_caustics", Scope::PhotonMaps),
+];
+
+/// Every field whose readers are scoped, with its scope: the numbers' rules and
+/// [`SCOPED_CHOICES`].
+pub fn scopes() -> impl Iterator<Item = (&'static str, Scope)> {
+    let numbers = RULES.iter().map(|r| (r.field, r.scope));
+    numbers.chain(SCOPED_CHOICES.iter().copied())
+}
+
+/// Which integrators read a field (its name as the form spells it, and its scope).
+pub fn scope_of(field: &str) -> Option<(&'static str, Scope)> {
+    scopes().find(|(f, _)| *f == field)
 }
 
 impl Range {

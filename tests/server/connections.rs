@@ -59,9 +59,10 @@ fn bodies_are_refused_before_they_are_read() {
     let head = first_response_head(&s, &big("Expect: 100-continue\r\n"));
     assert!(head.starts_with("HTTP/1.1 413"), "{head}");
     // A good token and a small body still get their `100 Continue` and the job.
-    let body = json!({"scene_name": "cornell", "params": {"width": 8, "height": 8,
+    let body =
+        json!({"scene_name": "cornell", "params": {"integrator": "photon", "width": 8, "height": 8,
         "photons": 1000, "caustic_photons": 0, "spp": 1, "gather_rays": 0}})
-    .to_string();
+        .to_string();
     let mut c = TcpStream::connect(s.addr()).unwrap();
     c.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
     write!(

@@ -16,7 +16,7 @@ fn a_job_over_the_compute_limit_is_refused_with_its_estimate() {
     let (status, v) = post(
         &s,
         &s.admin,
-        &json!({"scene_name": "cornell", "params": {"width": 4096, "height": 4096,
+        &json!({"scene_name": "cornell", "params": {"integrator": "photon", "width": 4096, "height": 4096,
                 "spp": 4096, "gather_rays": 14000, "photons": 1000, "caustic_photons": 0}}),
     );
     assert_eq!(status, 422, "{v}");
@@ -31,7 +31,7 @@ fn a_job_over_the_compute_limit_is_refused_with_its_estimate() {
     let (status, v) = post(
         &s,
         &s.admin,
-        &json!({"scene_name": "cornell", "params": {"width": 64, "height": 64,
+        &json!({"scene_name": "cornell", "params": {"integrator": "photon", "width": 64, "height": 64,
                 "spp": 1, "gather_rays": 16, "photons": 1000, "caustic_photons": 0}}),
     );
     assert_eq!(status, 202, "{v}");
@@ -185,7 +185,7 @@ fn a_store_that_lost_rows_never_hands_old_results_to_new_jobs() {
         let (status, v) = post(
             &s,
             &bob,
-            &json!({"scene_name": "cornell", "params": {"photons": 20000000, "width": 16,
+            &json!({"scene_name": "cornell", "params": {"integrator": "photon", "photons": 20000000, "width": 16,
                     "height": 16, "spp": 1, "gather_rays": 0}}),
         );
         assert_eq!(status, 202, "{v}");
@@ -240,7 +240,7 @@ fn cancel_stops_the_most_expensive_camera_pass_at_once() {
     let id = submit(
         &s,
         &s.admin,
-        json!({"scene_name": "cornell", "params": {"width": 64, "height": 64, "spp": 4096,
+        json!({"scene_name": "cornell", "params": {"integrator": "photon", "width": 64, "height": 64, "spp": 4096,
                "gather_rays": 256, "photons": 1000, "caustic_photons": 0}}),
     );
     // Wait until the camera pass runs (its progress events name the phase).

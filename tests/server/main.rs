@@ -16,7 +16,7 @@ use serde_json::{Value, json};
 fn small(scene: &str) -> Value {
     json!({
         "scene_name": scene,
-        "params": {"width": 48, "height": 32, "photons": 20000, "caustic_photons": 20000,
+        "params": {"integrator": "photon", "width": 48, "height": 32, "photons": 20000, "caustic_photons": 20000,
                    "spp": 1, "gather_rays": 0, "k": 20}
     })
 }
@@ -25,7 +25,7 @@ fn small(scene: &str) -> Value {
 fn long() -> Value {
     json!({
         "scene_name": "cornell_mirror_glass",
-        "params": {"width": 64, "height": 64, "photons": 20000000, "caustic_photons": 1000,
+        "params": {"integrator": "photon", "width": 64, "height": 64, "photons": 20000000, "caustic_photons": 1000,
                    "spp": 1, "gather_rays": 0}
     })
 }
@@ -148,7 +148,7 @@ fn camera_only_change_reuses_the_photon_maps() {
     scene["camera"]["fov"] = json!(45);
     let body = json!({
         "scene": scene,
-        "params": {"width": 40, "height": 40, "photons": 20000, "caustic_photons": 20000,
+        "params": {"integrator": "photon", "width": 40, "height": 40, "photons": 20000, "caustic_photons": 20000,
                    "spp": 2, "gather_rays": 0, "k": 10, "exposure": 1.0}
     });
     let second = run_to_done(&s, &s.admin, body);
@@ -355,7 +355,12 @@ fn limits_and_bad_input_get_clear_errors() {
             "params.integrator",
         ),
         (with_params(json!({"photons": 60000000})), "params.photons"),
-        (with_params(json!({"photons": 40000000})), "params"),
+        (
+            with_params(json!({"integrator": "photon", "photons": 40000000})),
+            "params",
+        ),
+        // The default integrator (auto) traces no photon maps.
+        (with_params(json!({"photons": 1000})), "params.photons"),
         (json!({"scene_name": "nope"}), "scene_name"),
         (json!({}), "scene"),
         (json!({"scene_name": "cornell", "colour": 1}), "colour"),
@@ -370,7 +375,7 @@ fn limits_and_bad_input_get_clear_errors() {
     let (_, v) = post(
         &s,
         t,
-        &json!({"scene_name": "cornell", "params": {"photons": 40000000}}),
+        &json!({"scene_name": "cornell", "params": {"integrator": "photon", "photons": 40000000}}),
     );
     assert!(
         v["error"].as_str().unwrap().contains("MiB"),
@@ -387,7 +392,7 @@ fn limits_and_bad_input_get_clear_errors() {
 
     // Two queued jobs per user at most: the third waiting one is refused with 429.
     let long_job = json!({"scene_name": "cornell_mirror_glass",
-        "params": {"width": 64, "height": 64, "photons": 10000000, "caustic_photons": 1000, "spp": 1, "gather_rays": 0}});
+        "params": {"integrator": "photon", "width": 64, "height": 64, "photons": 10000000, "caustic_photons": 1000, "spp": 1, "gather_rays": 0}});
     let running = submit(&s, t, long_job.clone());
     wait_running(&s, t, running);
     let q1 = submit(&s, t, small("cornell"));
@@ -444,8 +449,8 @@ fn a_small_job_is_not_stuck_behind_another_users_long_one() {
     let long_id = submit(&s, &alice, long());
     wait_running(&s, &alice, long_id);
     let t0 = Instant::now();
-    let mut quick = small("cornell");
-    quick["params"]["integrator"] = json!("raytrace");
+    let quick = json!({"scene_name": "cornell",
+        "params": {"integrator": "raytrace", "width": 48, "height": 32, "spp": 1}});
     let small_id = submit(&s, &bob, quick);
     expect_done(&s, &bob, small_id);
     let took = t0.elapsed().as_secs_f64();
@@ -498,14 +503,46 @@ fn sigterm_ends_streams_and_requeues_the_running_job() {
 /// never interrupted (issue 4, on the server).
 #[test]
 fn ppm_jobs_stream_previews_and_resume_after_a_crash() {
-    let dir = tempfile::tempdir().unwrap();
-    let s = Server::start(dir.path(), &["--max-running", "1"]);
+    let (_dir, s) = progressive_job_resumes_after_a_crash(json!({"integrator": "ppm",
+        "iterations": 40, "width": 64, "height": 48, "photons": 60000,
+        "caustic_photons": 60000}));
     let t = s.admin.clone();
-    let job = json!({
-        "scene_name": "cornell_mirror_glass",
-        "params": {"integrator": "ppm", "iterations": 40, "width": 64, "height": 48,
-                   "photons": 60000, "caustic_photons": 60000}
-    });
+    // ppm-only parameters elsewhere, and out-of-range ones, name their field.
+    let (status, err) = post(
+        &s,
+        &t,
+        &json!({"scene_name": "cornell", "params": {"integrator": "photon", "iterations": 4}}),
+    );
+    assert_eq!(
+        (status, err["path"].as_str()),
+        (422, Some("params.iterations"))
+    );
+    let (status, err) = post(
+        &s,
+        &t,
+        &json!({"scene_name": "cornell", "params": {"integrator": "ppm", "alpha": 1.5}}),
+    );
+    assert_eq!((status, err["path"].as_str()), (422, Some("params.alpha")));
+}
+
+/// The vcm job of [`ppm_jobs_stream_previews_and_resume_after_a_crash`]: every progressive
+/// integrator resumes through the same state.
+#[test]
+fn vcm_jobs_stream_previews_and_resume_after_a_crash() {
+    progressive_job_resumes_after_a_crash(json!({"integrator": "vcm", "iterations": 40,
+        "width": 64, "height": 48}));
+}
+
+/// Submit a progressive job, kill the server after a few previews, restart it: the job
+/// resumes from its saved state and ends with the bytes of a job never interrupted. Returns
+/// the restarted server (and its data folder, which outlives it).
+fn progressive_job_resumes_after_a_crash(params: Value) -> (tempfile::TempDir, Server) {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().to_path_buf();
+    let s = Server::start(&dir, &["--max-running", "1"]);
+    let t = s.admin.clone();
+    let passes = params["iterations"].as_u64().unwrap();
+    let job = json!({"scene_name": "cornell_mirror_glass", "params": params});
     let id = submit(&s, &t, job.clone());
     // Passes are published as previews; wait for a few, then kill the server mid-render.
     let evs = follow(&s, &t, id, |e| {
@@ -518,28 +555,22 @@ fn ppm_jobs_stream_previews_and_resume_after_a_crash() {
     assert_eq!(status, 200, "a preview image is served while the job runs");
     assert!(png.starts_with(b"\x89PNG"));
     s.kill();
-    assert!(
-        dir.path()
-            .join("results")
-            .join(format!("{id}.ppmstate"))
-            .is_file()
-    );
+    let state = dir.join("results").join(format!("{id}.ppmstate"));
+    assert!(state.is_file());
 
-    let s = Server::start(dir.path(), &["--max-running", "1"]);
+    let s = Server::start(&dir, &["--max-running", "1"]);
     expect_done(&s, &t, id);
     let (_, resumed) = get(&s, &t, &format!("/api/jobs/{id}"));
     let history = resumed["stats"]["ppm"]["history"].as_array().unwrap();
-    assert_eq!(history.len(), 40, "all 40 passes are in the stats");
+    assert_eq!(history.len() as u64, passes, "every pass is in the stats");
     let from = resumed["stats"]["ppm_state"]["resumed_from_pass"].as_u64();
     assert!(from.is_some_and(|n| n >= 3), "{}", resumed["stats"]);
-    assert_eq!(resumed["stats"]["ppm"]["passes"], 40);
-    assert_eq!(resumed["stats"]["params"]["integrator"], "ppm");
-    assert!(
-        !dir.path()
-            .join("results")
-            .join(format!("{id}.ppmstate"))
-            .exists()
+    assert_eq!(resumed["stats"]["ppm"]["passes"], passes);
+    assert_eq!(
+        resumed["stats"]["params"]["integrator"],
+        job["params"]["integrator"]
     );
+    assert!(!state.exists());
 
     let again = submit(&s, &t, job);
     follow_to_end(&s, &t, again);
@@ -549,23 +580,7 @@ fn ppm_jobs_stream_previews_and_resume_after_a_crash() {
         a == b,
         "the resumed job's EXR differs from an uninterrupted one"
     );
-
-    // ppm-only parameters elsewhere, and out-of-range ones, name their field.
-    let (status, err) = post(
-        &s,
-        &t,
-        &json!({"scene_name": "cornell", "params": {"iterations": 4}}),
-    );
-    assert_eq!(
-        (status, err["path"].as_str()),
-        (422, Some("params.iterations"))
-    );
-    let (status, err) = post(
-        &s,
-        &t,
-        &json!({"scene_name": "cornell", "params": {"integrator": "ppm", "alpha": 1.5}}),
-    );
-    assert_eq!((status, err["path"].as_str()), (422, Some("params.alpha")));
+    (tmp, s)
 }
 
 /// With one render slot, a progressive job gives way to another user's job between two
@@ -583,8 +598,8 @@ fn a_progressive_job_yields_its_slot_between_passes() {
     });
     let long_id = submit(&s, &alice, job);
     wait_running(&s, &alice, long_id);
-    let mut quick = small("cornell");
-    quick["params"]["integrator"] = json!("raytrace");
+    let quick = json!({"scene_name": "cornell",
+        "params": {"integrator": "raytrace", "width": 48, "height": 32, "spp": 1}});
     let small_id = submit(&s, &bob, quick);
     expect_done(&s, &bob, small_id);
     let (_, long_job) = get(&s, &alice, &format!("/api/jobs/{long_id}"));

@@ -97,7 +97,7 @@ fn the_memory_estimate_bounds_the_peak_of_the_largest_accepted_jobs() {
         ),
         (
             "photon",
-            json!({"scene_name": "cornell_mirror_glass", "params": {
+            json!({"scene_name": "cornell_mirror_glass", "params": {"integrator": "photon", 
             "width": 1024, "height": 1024, "photons": 2000000, "caustic_photons": 2000000,
             "spp": 1, "gather_rays": 0}}),
         ),
@@ -117,7 +117,7 @@ fn the_memory_estimate_bounds_the_peak_of_the_largest_accepted_jobs() {
         ),
         (
             "photon, pixels",
-            json!({"scene_name": "cornell", "params": {
+            json!({"scene_name": "cornell", "params": {"integrator": "photon", 
             "width": 2048, "height": 2048, "photons": 10000, "caustic_photons": 0,
             "spp": 1, "gather_rays": 0}}),
         ),

@@ -63,7 +63,8 @@ fn light_vertices(spec: &RenderSpec, pixels: u64) -> u64 {
         | Integrator::Pt(_) => 0,
         Integrator::Lt(_) => pixels * 12,
         Integrator::Bdpt(_) => pixels * (12 + 4 * 100),
-        Integrator::Vcm(_) => pixels * (12 + 2 * 4 * 100),
+        // Auto may choose vcm: its needs bound the others'.
+        Integrator::Vcm(_) | Integrator::Auto(_) => pixels * (12 + 2 * 4 * 100),
     }
 }
 
@@ -82,7 +83,7 @@ fn work(spec: &RenderSpec, pixels: u64) -> f64 {
         }
         // A light and a camera subpath per sample, each a few rays (the connections and
         // shadow rays of its vertices): counted as 8 rays a sample.
-        Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) => {
+        Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) | Integrator::Auto(p) => {
             camera(p.spp, 7) * p.stop.iterations as f64
         }
         Integrator::Vcm(m) => camera(m.passes.spp, 7) * m.passes.stop.iterations as f64,
@@ -120,7 +121,7 @@ impl ProgressModel {
                 ([photons / 3e6, photons / 1e7, 0.0, camera], passes)
             }
             // The camera pass carries a pass's progress (light subpaths are part of it).
-            Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) => {
+            Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) | Integrator::Auto(p) => {
                 ([0.0, 0.0, 0.0, 1.0], p.stop.iterations as f64)
             }
             Integrator::Vcm(m) => ([0.0, 0.0, 0.0, 1.0], m.passes.stop.iterations as f64),

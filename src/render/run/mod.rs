@@ -4,6 +4,7 @@
 //! `budget.rs`); tests/architecture.rs checks that no other module dispatches on the
 //! integrator.
 
+mod auto;
 mod budget;
 
 pub use budget::{Needs, ProgressModel};
@@ -119,6 +120,20 @@ pub fn run(
 ) -> Result<RenderOutput, RenderError> {
     spec.validate()?;
     check_reference(scene, spec, inputs.reference)?;
+    // The job's identity is its spec as given; what renders may be auto's choice.
+    let fingerprint = fingerprint(inputs.scene_key, spec);
+    let chosen;
+    let (spec, choice) = match &spec.integrator {
+        Integrator::Auto(passes) => {
+            let (integrator, why) = auto::choose(scene, passes);
+            chosen = RenderSpec {
+                integrator,
+                ..spec.clone()
+            };
+            (&chosen, Some(why))
+        }
+        _ => (spec, None),
+    };
     let analysis = analyse(scene, spec);
     let (width, height) = spec.resolution((scene.camera.width, scene.camera.height));
     let camera = scene.camera.clone().with_resolution(width, height);
@@ -132,18 +147,23 @@ pub fn run(
         Integrator::Lt(_) => Box::new(bidir(Modes::Lt)),
         Integrator::Bdpt(_) => Box::new(bidir(Modes::Bdpt)),
         Integrator::Vcm(_) => Box::new(bidir(Modes::Vcm)),
+        Integrator::Auto(_) => unreachable!("auto is resolved above"),
     };
     let stop = spec.stop().expect("the progressive integrators stop");
     let run = ProgressiveRun {
         reference: inputs.reference,
         resume: inputs.resume,
-        fingerprint: fingerprint(inputs.scene_key, spec),
+        fingerprint,
         stop,
         seed: spec.seed,
         radius: spec.merge_radius().map(|(alpha, r)| (alpha, r.is_some())),
         size: (width, height),
     };
-    run_passes(progression.as_mut(), run, control, on_pass)
+    let mut out = run_passes(progression.as_mut(), run, control, on_pass)?;
+    if let Some(why) = choice {
+        out.stats.effects.insert("integrator".into(), why);
+    }
+    Ok(out)
 }
 
 /// [`run`] with maps traced now, no reference, no state and no per-pass hook.
