@@ -118,8 +118,12 @@ def photonbox_runs(name, scene, ref, integrator, longest, out):
     # The process's time beyond its passes (start-up, scene load, output), spread over none:
     # added to every pass's elapsed time.
     overhead = max(0.0, wall - passes[-1]["elapsed"])
+    # Camera paths per second over the passes' own time (one path per pixel and pass).
+    paths_per_s = len(passes) * W * H / max(passes[-1]["elapsed"], 1e-9)
     return [{"seconds": p["elapsed"] + overhead, "relmse": p["error"]["relmse"],
-             "block_err": p["error"]["block_err"], "mean_ratio": p["error"]["mean_ratio"]}
+             "block_err": p["error"]["block_err"], "mean_ratio": p["error"]["mean_ratio"],
+             "paths_per_s": paths_per_s, "integrator": s.get("effects", {}).get(
+                 "integrator", {}).get("how", integrator)}
             for p in passes]
 
 
@@ -157,6 +161,9 @@ def main():
         results[name] = {"caustics": caustics, "mitsuba": mi, "photonbox": curves}
         json.dump(results, open(os.path.join(args.out, "points.json"), "w"), indent=1)
     report(results, args.budgets)
+    for name, r in results.items():
+        for metric in ("relmse", "block_err"):
+            plot(name, r, metric, os.path.join(args.out, f"{name}.{metric}.svg"))
 
 
 def report(results, budgets):
@@ -169,6 +176,18 @@ def report(results, budgets):
             ok = abs(p["mean_ratio"] - 1) <= 0.005 and p["block_err"] <= 0.008
             print(f"| {name} | {integrator} | {p['seconds']:.0f} | {p['mean_ratio']:.4f} | "
                   f"{p['block_err']:.4f} | {p['relmse']:.5f} | {'yes' if ok else 'no'} |")
+    print("\n### Throughput: camera paths per second, pt against Mitsuba's path tracer\n")
+    print("| scene | photonbox pt (passes x pixels / pass time) | Mitsuba (spp x pixels / render time, "
+          "longest rung) | ratio |")
+    print("|---|---|---|---|")
+    for name, r in results.items():
+        curve = r["photonbox"].get("pt")
+        if not curve or "paths_per_s" not in curve[-1]:
+            continue
+        ours = curve[-1]["paths_per_s"]
+        rung = max(r["mitsuba"], key=lambda p: p["seconds"])
+        theirs = rung["spp"] * W * H / rung["seconds"]
+        print(f"| {name} | {ours / 1e6:.2f} M/s | {theirs / 1e6:.2f} M/s | {ours / theirs:.2f} |")
     for metric in ("relmse", "block_err"):
         print(f"\n### Time to Mitsuba's {metric} at each budget, as a fraction of the budget\n")
         head = " | ".join(f"{b:g} s" for b in budgets)
@@ -192,6 +211,54 @@ def report(results, budgets):
                     "not reached" if c is None else
                     (f"**{c:.3f}**" if c > goal else f"{c:.3f}") for c in cells)
                 print(f"| {name} | {goal} | {integrator} | {shown} |")
+
+
+COLORS = {"mitsuba": "#000000", "auto": "#d62728", "photon": "#8c564b", "ppm": "#9467bd",
+          "pt": "#1f77b4", "lt": "#7f7f7f", "bdpt": "#2ca02c", "vcm": "#ff7f0e"}
+
+
+def plot(name, r, metric, path):
+    """An SVG of `metric` against seconds, both log scales: Mitsuba's rungs and each of our
+    integrators' pass curves (no plotting library: the venvs here carry none)."""
+    series = {"mitsuba": [(p["seconds"], p[metric]) for p in r["mitsuba"]]}
+    for integrator, curve in r["photonbox"].items():
+        series[integrator] = [(p["seconds"], p[metric]) for p in curve]
+    pts = [(t, e) for s in series.values() for t, e in s if t > 0 and e > 0]
+    if not pts:
+        return
+    lx = [math.log10(t) for t, _ in pts]
+    ly = [math.log10(e) for _, e in pts]
+    x0, x1 = math.floor(min(lx)), math.ceil(max(lx))
+    y0, y1 = math.floor(min(ly)), math.ceil(max(ly))
+    w, h, m = 640, 400, 60
+    def sx(t): return m + (math.log10(t) - x0) / max(x1 - x0, 1e-9) * (w - 2 * m)
+    def sy(e): return h - m - (math.log10(e) - y0) / max(y1 - y0, 1e-9) * (h - 2 * m)
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}" '
+           f'font-family="sans-serif" font-size="11">',
+           f'<rect width="{w}" height="{h}" fill="white"/>',
+           f'<text x="{w / 2}" y="18" text-anchor="middle" font-size="13">{name}: {metric} '
+           f'against seconds (log-log)</text>']
+    for k in range(x0, x1 + 1):
+        x = sx(10 ** k)
+        out.append(f'<line x1="{x:.1f}" y1="{m}" x2="{x:.1f}" y2="{h - m}" stroke="#ddd"/>')
+        out.append(f'<text x="{x:.1f}" y="{h - m + 15}" text-anchor="middle">{10 ** k:g} s</text>')
+    for k in range(y0, y1 + 1):
+        y = sy(10 ** k)
+        out.append(f'<line x1="{m}" y1="{y:.1f}" x2="{w - m}" y2="{y:.1f}" stroke="#ddd"/>')
+        out.append(f'<text x="{m - 5}" y="{y + 4:.1f}" text-anchor="end">{10 ** k:g}</text>')
+    for i, (label, s) in enumerate(series.items()):
+        s = [(t, e) for t, e in sorted(s) if t > 0 and e > 0]
+        if not s:
+            continue
+        color = COLORS.get(label, "#17becf")
+        line = " ".join(f"{sx(t):.1f},{sy(e):.1f}" for t, e in s)
+        dash = ' stroke-dasharray="6,3"' if label == "mitsuba" else ""
+        out.append(f'<polyline points="{line}" fill="none" stroke="{color}" '
+                   f'stroke-width="1.5"{dash}/>')
+        out.append(f'<text x="{w - m + 5}" y="{m + 14 * i}" fill="{color}">{label}</text>')
+    out.append("</svg>")
+    with open(path, "w") as f:
+        f.write("\n".join(out) + "\n")
 
 
 if __name__ == "__main__":

@@ -10,13 +10,13 @@ use super::Ray;
 use super::shapes::ShapeHit;
 use crate::render::math::gamma;
 
-/// a*b - c*d with the rounding error of c*d compensated by an FMA (Kahan; pbrt-v4 B.2.9).
+/// a*b - c*d as the f32 nearest the exact value, or next to it: both products are exact in
+/// f64 (24-bit significands), and their difference rounds once there. At least as accurate
+/// as Kahan's FMA-compensated form (pbrt-v4 B.2.9), which without a hardware FMA target
+/// compiles to calls; see docs/performance-history.md.
 #[inline]
 fn difference_of_products(a: f32, b: f32, c: f32, d: f32) -> f32 {
-    let cd = c * d;
-    let dop = a.mul_add(b, -cd);
-    let err = (-c).mul_add(d, cd);
-    dop + err
+    (a as f64 * b as f64 - c as f64 * d as f64) as f32
 }
 
 #[inline]
@@ -51,15 +51,10 @@ pub(super) fn intersect_triangle(p0: Vec3A, p1: Vec3A, p2: Vec3A, ray: &Ray) -> 
         p.x += sx * p.z;
         p.y += sy * p.z;
     }
-    let mut e0 = difference_of_products(b.x, c.y, b.y, c.x);
-    let mut e1 = difference_of_products(c.x, a.y, c.y, a.x);
-    let mut e2 = difference_of_products(a.x, b.y, a.y, b.x);
-    if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
-        let f = |p: f32, q: f32, r: f32, s: f32| (p as f64 * q as f64 - r as f64 * s as f64) as f32;
-        e0 = f(b.x, c.y, b.y, c.x);
-        e1 = f(c.x, a.y, c.y, a.x);
-        e2 = f(a.x, b.y, a.y, b.x);
-    }
+    // Edge functions, their signs exact (see difference_of_products).
+    let e0 = difference_of_products(b.x, c.y, b.y, c.x);
+    let e1 = difference_of_products(c.x, a.y, c.y, a.x);
+    let e2 = difference_of_products(a.x, b.y, a.y, b.x);
     if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
         return None;
     }
