@@ -135,11 +135,11 @@ fn path_tracing_bdpt_and_vcm_agree_where_each_carries_every_path() {
     assert!(rel(c, a).abs() < 0.02, "vcm {c} vs pt {a}");
 }
 
-/// `auto` (issue 20, the default integrator): a room without mirror or glass is path traced,
+/// `auto` (issue 20, the default integrator): a room without mirror or glass gets bdpt,
 /// one with glass is rendered by vcm; the choice is exactly that integrator (the same
 /// bytes) and `effects.integrator` says which and why.
 #[test]
-fn auto_path_traces_a_diffuse_room_and_merges_behind_glass() {
+fn auto_connects_in_a_diffuse_room_and_merges_behind_glass() {
     let passes = Passes {
         spp: 1,
         stop: Stop::after(2),
@@ -149,7 +149,7 @@ fn auto_path_traces_a_diffuse_room_and_merges_behind_glass() {
         ..Merging::DEFAULT
     };
     for (text, chosen, explicit) in [
-        (CLOSED_SPHERE, "pt", Integrator::Pt(passes.clone())),
+        (CLOSED_SPHERE, "bdpt", Integrator::Bdpt(passes.clone())),
         (GLASS_BOX, "vcm", Integrator::Vcm(vcm)),
     ] {
         let s = scene(text);
