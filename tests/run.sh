@@ -39,3 +39,6 @@ export PHOTONBOX_SCHEMATHESIS="$st_venv/bin/st"
 geckodriver --version
 # Every test binary, even after one fails (cargo stops at the first failing binary otherwise).
 cargo test --no-fail-fast "$@"
+# The lint gates, after the tests (CI runs this script and nothing else).
+cargo fmt --check
+cargo clippy --all-targets -- -D warnings
