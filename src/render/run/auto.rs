@@ -2,50 +2,35 @@
 //! facts), decided before the render starts and reported in STATS.json's
 //! `effects.integrator`. The rules follow the race against Mitsuba 3 (docs/performance.md):
 //!
-//! - mirror or glass lit by a point light: its caustics (light, specular, diffuse) can be
-//!   reached only from the light side, and seen through glass only by merging: `vcm`;
-//! - mirror or glass and only area lights: every technique reaches every path, merging
-//!   still carries caustics seen through glass best: `vcm`;
+//! - mirror or glass: caustics (light, specular, diffuse), which from a point light only
+//!   the light side reaches, and which seen through glass only merging carries: `vcm`;
 //! - no mirror or glass: no caustic to merge; connections between subpaths carry the
 //!   indirect light better than path tracing's next-event estimation alone: `bdpt`, the
 //!   fastest of ours to Mitsuba's block_err on every diffuse scene of the race (cornell,
 //!   knot, cornell_spheres: 0.65-2.8 of Mitsuba's time against pt's 1.8-4.3).
 
-use crate::render::light::Light;
-use crate::render::math::max_component;
 use crate::render::scene::Scene;
 use crate::render::stats::Effect;
 use crate::spec::{Integrator, Merging, Passes};
 
 /// The integrator for `scene`, with `passes`, and why.
 pub(super) fn choose(scene: &Scene, passes: &Passes) -> (Integrator, Effect) {
-    let specular = scene.materials.iter().any(|m| m.is_specular());
-    let lit_point_light = scene.lights.iter().enumerate().any(|(i, l)| {
-        matches!(l, Light::Point { .. })
-            && max_component(l.power()) > 0.0
-            && scene.shut_in[i].is_none()
-    });
-    let vcm = || {
-        Integrator::Vcm(Merging {
+    let (integrator, reason) = if scene.materials.iter().any(|m| m.is_specular()) {
+        let vcm = Merging {
             passes: passes.clone(),
             ..Merging::DEFAULT
-        })
-    };
-    let (integrator, reason) = match (specular, lit_point_light) {
-        (true, true) => (
-            vcm(),
-            "a point light and mirror or glass: its caustics are reached from the light \
-             side only, and seen through glass by merging",
-        ),
-        (true, false) => (
-            vcm(),
-            "mirror or glass: merging carries the caustics seen through them",
-        ),
-        (false, _) => (
+        };
+        (
+            Integrator::Vcm(vcm),
+            "mirror or glass: their caustics are reached from a point light's side only, \
+             and seen through glass by merging",
+        )
+    } else {
+        (
             Integrator::Bdpt(passes.clone()),
             "no mirror or glass: no caustic to merge; connections between light and camera \
              subpaths carry the indirect light",
-        ),
+        )
     };
     let how = format!("auto chose {}", integrator.name().as_str());
     let effect = Effect {
