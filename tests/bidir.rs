@@ -85,7 +85,11 @@ fn every_technique_renders_the_lit_floor_within_1_percent_per_region() {
         }
         sum / 64.0
     };
-    for (name, spec) in family(1024) {
+    // vcm at 4096 passes: merging blurs the light's peak under it (region (12, 12)), a
+    // bias that falls as passes^(alpha - 1): -1.0% at 1024 passes, -0.7% at 4096.
+    let [pt, lt, bdpt, _] = family(1024);
+    let [.., vcm] = family(4096);
+    for (name, spec) in [pt, lt, bdpt, vcm] {
         let img = render_checked(&s, &spec).image;
         let got: Vec<f64> = img.pixels.iter().map(|p| p[0] as f64).collect();
         for (x0, y0) in [(0, 0), (12, 12), (24, 8), (8, 24)] {

@@ -18,6 +18,9 @@ with specular surfaces) and budget T:
   --reference: every pass records its error and its elapsed seconds, so one run gives the
   whole error-against-time curve; the process's own start-up (scene load) is added. A
   one-shot integrator (photon) is one point per setting of a small ladder of photon counts.
+  `auto` renders once per budget with --time-limit T (what it chooses depends on T: a
+  photon render under a short limit on a scene with mirror or glass), its cell at T from
+  that run alone.
 - The cell is photonbox's time to reach Mitsuba's error at T (the first pass at or below
   it), over T: below 1, photonbox is faster. The best integrator per cell is reported, and
   each integrator's own figure.
@@ -89,9 +92,19 @@ def at_time(pts, metric, t):
     return None
 
 
-def photonbox_runs(name, scene, ref, integrator, longest, out):
+def auto_runs(name, scene, ref, budgets, out):
+    """`auto` once per budget (its choice depends on the budget): each run's points, marked
+    with the budget they answer."""
+    points = []
+    for b in budgets:
+        curve = photonbox_runs(name, scene, ref, "auto", b, out, tag=f"auto{b:g}")
+        points += [{**p, "budget": b} for p in curve]
+    return points
+
+
+def photonbox_runs(name, scene, ref, integrator, longest, out, tag=None):
     """An integrator's error-against-time curve: (seconds, relmse, block_err) points."""
-    base = os.path.join(out, f"{name}.{integrator}")
+    base = os.path.join(out, f"{name}.{tag or integrator}")
     if integrator == "photon":
         curve = []
         for n, g, spp in [(25_000, 0, 1), (100_000, 0, 1), (200_000, 4, 2), (200_000, 8, 4),
@@ -116,6 +129,9 @@ def photonbox_runs(name, scene, ref, integrator, longest, out):
     subprocess.run(run, check=True, capture_output=True)
     wall = time.time() - t0
     s = json.load(open(stats))
+    how = s.get("effects", {}).get("integrator", {}).get("how", integrator)
+    if "ppm" not in s:  # auto chose a one-shot render: one point
+        return [{"seconds": wall, **compare(base + ".exr", ref), "integrator": how}]
     passes = s["ppm"]["history"]
     # The process's time beyond its passes (start-up, scene load, output), spread over none:
     # added to every pass's elapsed time.
@@ -125,8 +141,7 @@ def photonbox_runs(name, scene, ref, integrator, longest, out):
     paths_per_s = s["ppm"]["passes"] * W * H / max(s["times"]["render"], 1e-9)
     return [{"seconds": p["elapsed"] + overhead, "relmse": p["error"]["relmse"],
              "block_err": p["error"]["block_err"], "mean_ratio": p["error"]["mean_ratio"],
-             "paths_per_s": paths_per_s, "integrator": s.get("effects", {}).get(
-                 "integrator", {}).get("how", integrator)}
+             "paths_per_s": paths_per_s, "integrator": how}
             for p in passes]
 
 
@@ -170,8 +185,9 @@ def main():
         mi = mitsuba_ladder(name, scene, ref, args.budgets, args.out)
         curves = {}
         for integrator in args.integrators:
-            curves[integrator] = photonbox_runs(name, scene, ref, integrator,
-                                                max(args.budgets), args.out)
+            curves[integrator] = (
+                auto_runs(name, scene, ref, args.budgets, args.out) if integrator == "auto"
+                else photonbox_runs(name, scene, ref, integrator, max(args.budgets), args.out))
             last = curves[integrator][-1]
             print(f"  {integrator}: {len(curves[integrator])} points, last "
                   f"{last['seconds']:.1f} s relmse {last['relmse']:.5f} "
@@ -218,7 +234,9 @@ def report(results, budgets):
                 cells = []
                 for b in budgets:
                     target = at_time(r["mitsuba"], metric, b)
-                    t = time_to(curve, metric, target) if target else None
+                    # auto ran once per budget: the run that answers this one.
+                    own = [p for p in curve if p.get("budget", b) == b]
+                    t = time_to(own, metric, target) if target else None
                     cells.append(t / b if t else None)
                 rows[integrator] = cells
             best = [min((c[i] for c in rows.values() if c[i] is not None), default=None)
@@ -240,7 +258,8 @@ def plot(name, r, metric, path):
     integrators' pass curves (no plotting library: the venvs here carry none)."""
     series = {"mitsuba": [(p["seconds"], p[metric]) for p in r["mitsuba"]]}
     for integrator, curve in r["photonbox"].items():
-        series[integrator] = [(p["seconds"], p[metric]) for p in curve]
+        # auto's runs (one per budget) drawn as one curve through all their points.
+        series[integrator] = sorted((p["seconds"], p[metric]) for p in curve)
     pts = [(t, e) for s in series.values() for t, e in s if t > 0 and e > 0]
     if not pts:
         return

@@ -57,6 +57,13 @@ pub(crate) trait CameraPaths: Sync {
     type Scratch: Default + Send;
 
     fn radiance(&self, ray: &Ray, pixel: u64, s: &mut Sampler, scratch: &mut Self::Scratch) -> Rgb;
+
+    /// Sample `j` of `spp` of `pixel`'s random numbers: by default independent ones from
+    /// stream (seed, camera, pixel * spp + j).
+    #[inline]
+    fn sampler(&self, seed: u64, pixel: u64, j: u32, spp: u32) -> Sampler {
+        Sampler::new(seed, Stream::Camera, pixel * spp as u64 + j as u64)
+    }
 }
 
 impl CameraPaths for Shader<'_> {
@@ -147,8 +154,7 @@ pub(crate) fn render_film<P: CameraPaths>(
                     let pixel = (y as u64) * w as u64 + x as u64;
                     let mut px = PixelSum::default();
                     for j in 0..spp {
-                        let mut s =
-                            Sampler::new(seed, Stream::Camera, pixel * spp as u64 + j as u64);
+                        let mut s = paths.sampler(seed, pixel, j, spp);
                         let jitter = s.next_2d();
                         let ray = camera.ray(x as f32 + jitter.x, y as f32 + jitter.y);
                         let l = paths.radiance(&ray, pixel, &mut s, scratch);

@@ -20,6 +20,7 @@ pub mod output;
 pub mod photon;
 pub mod ppm;
 mod progressive;
+pub mod qmc;
 mod run;
 pub mod sampling;
 pub mod scene;

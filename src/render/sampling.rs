@@ -9,6 +9,7 @@ use std::f32::consts::{FRAC_1_PI, TAU};
 use glam::{Vec2, Vec3A};
 
 use crate::render::math::sin_cos_turns;
+use crate::render::qmc::SobolStream;
 use rand::Rng;
 use rand_pcg::Pcg64Mcg;
 
@@ -23,10 +24,17 @@ pub enum Stream {
     LightPaths = 4,
 }
 
-/// A small, fast generator (PCG 128-bit MCG, O'Neill 2014) seeded from a hash of
-/// (seed, stream, index).
+/// A path's random numbers: independent ones from a small, fast generator (PCG 128-bit
+/// MCG, O'Neill 2014) seeded from a hash of (seed, stream, index), or, for the progressive
+/// path integrators, the next point of the path's own scrambled Sobol sequence
+/// ([`crate::render::qmc`]).
 pub struct Sampler {
-    rng: Pcg64Mcg,
+    source: Source,
+}
+
+enum Source {
+    Independent(Pcg64Mcg),
+    Sobol(SobolStream),
 }
 
 impl Sampler {
@@ -35,26 +43,40 @@ impl Sampler {
         let b = splitmix64(a ^ splitmix64(index.wrapping_add(0x9e37_79b9)));
         let state = ((a as u128) << 64) | b as u128;
         Sampler {
-            rng: Pcg64Mcg::new(state),
+            source: Source::Independent(Pcg64Mcg::new(state)),
+        }
+    }
+
+    /// Path `index` of `stream` at iteration `n` (0-based) of a progressive render: the
+    /// n-th point of the path's own scrambled Sobol sequence.
+    pub fn sobol(seed: u64, stream: Stream, index: u64, n: u64) -> Sampler {
+        Sampler {
+            source: Source::Sobol(SobolStream::new(seed, stream, index, n)),
         }
     }
 
     /// A placeholder for a lane without work, never drawn from.
     pub fn idle() -> Sampler {
         Sampler {
-            rng: Pcg64Mcg::new(1),
+            source: Source::Independent(Pcg64Mcg::new(1)),
         }
     }
 
     /// Uniform in [0, 1).
     #[inline]
     pub fn next_f32(&mut self) -> f32 {
-        self.rng.random::<f32>()
+        match &mut self.source {
+            Source::Independent(rng) => rng.random::<f32>(),
+            Source::Sobol(q) => q.next_f32(),
+        }
     }
 
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
-        Vec2::new(self.next_f32(), self.next_f32())
+        match &mut self.source {
+            Source::Independent(rng) => Vec2::new(rng.random::<f32>(), rng.random::<f32>()),
+            Source::Sobol(q) => Vec2::from_array(q.next_2d()),
+        }
     }
 }
 

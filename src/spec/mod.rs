@@ -24,7 +24,7 @@ mod rules;
 
 pub use describe::{default_text, defaults_by_integrator};
 pub use form::{EffectsForm, IntegratorName, SpecForm, StoreName};
-pub use rules::{MAX_IMAGE_SIDE, MAX_PHOTONS, RULES, Range, Rule, Scope};
+pub use rules::{MAX_IMAGE_SIDE, MAX_ITERATIONS, MAX_PHOTONS, RULES, Range, Rule, Scope};
 
 /// The integrator references are rendered with when none is given (`sweep`): progressive
 /// photon mapping converges to the scene's true image however hard its caustics are.

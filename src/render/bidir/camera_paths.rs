@@ -15,7 +15,7 @@ use crate::render::geometry::{Hit, Ray, Surface, SurfacePoint, spawn_ray_to};
 use crate::render::material::{Material, Transport};
 use crate::render::math::Rgb;
 use crate::render::photon::KdTree;
-use crate::render::sampling::Sampler;
+use crate::render::sampling::{Sampler, Stream};
 
 /// One iteration's camera pass: its light subpaths, and their vertices in a kd-tree for
 /// merging.
@@ -40,6 +40,15 @@ struct Vertex<'v> {
 
 impl CameraPaths for CameraPass<'_> {
     type Scratch = ();
+
+    /// The pixel's point of its own Sobol sequence at this iteration (`qmc.rs`), or
+    /// independent numbers when the iteration has no sequence.
+    fn sampler(&self, seed: u64, pixel: u64, j: u32, spp: u32) -> Sampler {
+        match self.it.sequence {
+            Some((seed, n)) => Sampler::sobol(seed, Stream::Camera, pixel, n),
+            None => Sampler::new(seed, Stream::Camera, pixel * spp as u64 + j as u64),
+        }
+    }
 
     fn radiance(&self, ray: &Ray, pixel: u64, s: &mut Sampler, _: &mut ()) -> Rgb {
         let it = self.it;

@@ -122,7 +122,10 @@ fn trace_one(it: &Iteration, index: u64, out: &mut Chunk) {
     if !(it.picker.total > 0.0) {
         return;
     }
-    let mut s = Sampler::new(it.seed, Stream::LightPaths, index);
+    let mut s = match it.sequence {
+        Some((seed, n)) => Sampler::sobol(seed, Stream::LightPaths, index, n),
+        None => Sampler::new(it.seed, Stream::LightPaths, index),
+    };
     let (li, pick) = it.picker.pick(s.next_f32());
     let light = &it.scene.lights[li];
     let Some(e) = light.emit(s.next_2d(), s.next_2d()) else {

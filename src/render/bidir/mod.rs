@@ -87,8 +87,12 @@ pub(super) struct Iteration<'a> {
     factors: Factors,
     max_depth: u32,
     effects: EffectSwitches,
-    /// The iteration's random seed.
+    /// The iteration's random seed (the pilot's light paths).
     seed: u64,
+    /// Where the subpaths' quasi-random numbers come from: the render's seed and this
+    /// iteration's index among all passes' iterations (0-based); `None` for independent
+    /// ones.
+    sequence: Option<(u64, u64)>,
     /// Light subpaths (one per pixel).
     paths: u64,
 }
@@ -155,7 +159,7 @@ impl<'a> BidirPasses<'a> {
         }
     }
 
-    fn iteration(&self, seed: u64, r2: f32) -> Iteration<'_> {
+    fn iteration(&self, seed: u64, sequence: Option<u64>, r2: f32) -> Iteration<'_> {
         let (w, h) = (self.camera.width as u64, self.camera.height as u64);
         let modes = self.modes;
         #[allow(unused_mut)]
@@ -173,6 +177,7 @@ impl<'a> BidirPasses<'a> {
             max_depth: self.spec.max_depth,
             effects: self.spec.effects,
             seed,
+            sequence: sequence.map(|n| (self.spec.seed, n)),
             paths: w * h,
         }
     }
@@ -183,7 +188,7 @@ impl<'a> BidirPasses<'a> {
     /// 1/sqrt(density)).
     fn pilot_radius(&self, seed: u64, control: &Control) -> Result<f32, RenderError> {
         let r_max = MAX_RADIUS_FRACTION * self.scene.extent().max(f32::MIN_POSITIVE);
-        let mut pilot = self.iteration(splitmix64(seed ^ 0x7069_6c6f_7400), 0.0);
+        let mut pilot = self.iteration(splitmix64(seed ^ 0x7069_6c6f_7400), None, 0.0);
         pilot.paths = PILOT_PATHS;
         pilot.modes = Modes::Bdpt;
         let paths = trace_light_paths(&pilot, control)?;
@@ -214,10 +219,11 @@ impl<'a> BidirPasses<'a> {
     fn run_iteration(
         &self,
         seed: u64,
+        n: u64,
         r2: f32,
         control: &Control,
     ) -> Result<(Image, u64, u64), RenderError> {
-        let it = self.iteration(seed, r2);
+        let it = self.iteration(seed, Some(n), r2);
         let lights = if self.modes.traces_light_paths() {
             trace_light_paths(&it, control)?
         } else {
@@ -261,7 +267,8 @@ impl Progression for BidirPasses<'_> {
         let mut sum = vec![[0.0f64; 3]; self.camera.width as usize * self.camera.height as usize];
         let (mut dropped, mut stored) = (0, 0);
         for j in 0..self.spp {
-            let (image, d, s) = self.run_iteration(splitmix64(seed ^ j as u64), r2, control)?;
+            let n = (pass as u64 - 1) * self.spp as u64 + j as u64;
+            let (image, d, s) = self.run_iteration(splitmix64(seed ^ j as u64), n, r2, control)?;
             for (acc, px) in sum.iter_mut().zip(&image.pixels) {
                 for c in 0..3 {
                     acc[c] += px[c] as f64;

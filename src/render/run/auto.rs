@@ -1,42 +1,155 @@
-//! `auto`: the integrator a scene calls for, from what it holds (the effects analysis's
-//! facts), decided before the render starts and reported in STATS.json's
-//! `effects.integrator`. The rules follow the race against Mitsuba 3 (docs/performance.md):
+//! `auto`: the integrator a scene and a budget call for, from what the scene holds (the
+//! effects analysis's facts) and the spec's stop, decided before the render starts and
+//! reported in STATS.json's `effects.integrator`. The rules follow the race against
+//! Mitsuba 3 (docs/performance.md, section 6):
 //!
-//! - mirror or glass: caustics (light, specular, diffuse), which from a point light only
-//!   the light side reaches, and which seen through glass only merging carries: `vcm`;
+//! - mirror or glass, and a time limit alone (no pass count, no target error) that is
+//!   short: one `photon` render sized to half the budget. Final gathering over a caustic
+//!   map reaches a path tracer's error at that budget in a fraction of it, sooner than any
+//!   progressive integrator of ours (which spend their first seconds on noise);
+//! - mirror or glass otherwise: caustics (light, specular, diffuse), which from a point
+//!   light only the light side reaches, and which seen through glass only merging carries:
+//!   `vcm`, which converges;
 //! - no mirror or glass: no caustic to merge; connections between subpaths carry the
 //!   indirect light better than path tracing's next-event estimation alone: `bdpt`, the
-//!   fastest of ours to Mitsuba's block_err on every diffuse scene of the race (cornell,
-//!   knot, cornell_spheres: 0.65-2.8 of Mitsuba's time against pt's 1.8-4.3).
+//!   fastest of ours to Mitsuba's block_err on every diffuse scene of the race.
+//!
+//! The choice is a function of the scene and the spec alone (never of the machine or the
+//! clock), so the same job renders the same bytes from the CLI and the server.
 
 use crate::render::scene::Scene;
 use crate::render::stats::Effect;
-use crate::spec::{Integrator, Merging, Passes};
+use crate::spec::{Integrator, MAX_ITERATIONS, Merging, Passes, PhotonMapping};
 
-/// The integrator for `scene`, with `passes`, and why.
-pub(super) fn choose(scene: &Scene, passes: &Passes) -> (Integrator, Effect) {
-    let (integrator, reason) = if scene.materials.iter().any(|m| m.is_specular()) {
-        let vcm = Merging {
-            passes: passes.clone(),
-            ..Merging::DEFAULT
-        };
-        (
-            Integrator::Vcm(vcm),
-            "mirror or glass: their caustics are reached from a point light's side only, \
-             and seen through glass by merging",
-        )
-    } else {
-        (
+/// Photon-mapping settings from small to large, (emitted photons per map, final-gather
+/// rays, samples per pixel): the race's ladder, along which the error against the
+/// reference falls steadily (block_err 0.049 to 0.0072 on the twin of scene (1)).
+const RUNGS: [(u64, u32, u32); 7] = [
+    (25_000, 0, 1),
+    (100_000, 0, 1),
+    (200_000, 4, 2),
+    (200_000, 8, 4),
+    (400_000, 16, 4),
+    (1_000_000, 16, 16),
+    (2_000_000, 32, 16),
+];
+
+/// Seconds per emitted photon (both maps: tracing and the irradiance precomputation) and
+/// per gather ray or camera sample, measured on the race's host (2 cores) on the twins at
+/// 256x256 and rounded up (1.0 and 0.45-0.55 microseconds): an upper estimate there, and
+/// faster machines only finish sooner.
+const SECONDS_PER_PHOTON: f64 = 1.0e-6;
+const SECONDS_PER_GATHER_RAY: f64 = 0.6e-6;
+
+/// The predicted seconds of a photon render with `rung` at `pixels`.
+fn predicted_seconds((photons, gather, spp): (u64, u32, u32), pixels: u64) -> f64 {
+    photons as f64 * SECONDS_PER_PHOTON
+        + (pixels * spp as u64 * (gather as u64 + 1)) as f64 * SECONDS_PER_GATHER_RAY
+}
+
+/// The photon render for a budget of `seconds` at `pixels`: the largest rung predicted to
+/// take at most half of it (the model ignores the scene's size), or none when the budget
+/// holds the largest rung twice over: there `vcm`'s converging passes do better (race: at
+/// 64 s, vcm's block_err 0.0060 against the largest rung's 0.0072).
+fn photon_for_budget(seconds: f64, pixels: u64) -> Option<PhotonMapping> {
+    let largest = RUNGS[RUNGS.len() - 1];
+    if seconds >= 2.0 * predicted_seconds(largest, pixels) {
+        return None;
+    }
+    let (photons, gather_rays, spp) = RUNGS
+        .iter()
+        .rev()
+        .copied()
+        .find(|&r| predicted_seconds(r, pixels) <= seconds / 2.0)
+        .unwrap_or(RUNGS[0]);
+    Some(PhotonMapping {
+        photons,
+        caustic_photons: photons,
+        gather_rays,
+        spp,
+        ..PhotonMapping::PHOTON
+    })
+}
+
+/// The photon render `auto` chooses on a scene with mirror or glass for `passes` at
+/// `pixels`, if it chooses one: only for a time limit alone (a pass count or a target error
+/// asks for converging passes).
+pub(super) fn budget_photon(passes: &Passes, pixels: u64) -> Option<PhotonMapping> {
+    let stop = &passes.stop;
+    match (stop.time_limit, stop.target_error) {
+        (Some(t), None) if stop.iterations == MAX_ITERATIONS => photon_for_budget(t, pixels),
+        _ => None,
+    }
+}
+
+/// The integrator for `scene` at `pixels`, with `passes`, and why.
+pub(super) fn choose(scene: &Scene, passes: &Passes, pixels: u64) -> (Integrator, Effect) {
+    let specular = scene.materials.iter().any(|m| m.is_specular());
+    let (integrator, reason) = match budget_photon(passes, pixels) {
+        Some(photon) if specular => {
+            let reason = format!(
+                "mirror or glass and a short time limit: one photon-mapping render sized to \
+                 half of it ({} photons a map, {} gather rays, {} spp) reaches a path \
+                 tracer's error at that budget sooner than converging passes",
+                photon.photons, photon.gather_rays, photon.spp
+            );
+            (Integrator::Photon(photon), reason)
+        }
+        _ if specular => {
+            let vcm = Merging {
+                passes: passes.clone(),
+                ..Merging::DEFAULT
+            };
+            (
+                Integrator::Vcm(vcm),
+                "mirror or glass: their caustics are reached from a point light's side only, \
+                 and seen through glass by merging"
+                    .to_string(),
+            )
+        }
+        _ => (
             Integrator::Bdpt(passes.clone()),
             "no mirror or glass: no caustic to merge; connections between light and camera \
-             subpaths carry the indirect light",
-        )
+             subpaths carry the indirect light"
+                .to_string(),
+        ),
     };
     let how = format!("auto chose {}", integrator.name().as_str());
     let effect = Effect {
         simulated: true,
         how,
-        reason: reason.to_string(),
+        reason,
     };
     (integrator, effect)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PIXELS: u64 = 256 * 256;
+
+    /// Longer budgets get larger rungs, up to where vcm takes over; every rung chosen is
+    /// predicted to fit half the budget.
+    #[test]
+    fn the_rung_grows_with_the_budget_until_vcm_takes_over() {
+        let photons = |t| photon_for_budget(t, PIXELS).map(|p| p.photons);
+        assert_eq!(photons(0.01), Some(25_000));
+        assert_eq!(photons(1.0), Some(100_000));
+        assert_eq!(photons(4.0), Some(200_000));
+        assert_eq!(photons(16.0), Some(400_000));
+        assert_eq!(photons(30.0), Some(1_000_000));
+        assert_eq!(photons(64.0), None);
+        for t in [0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0] {
+            if let Some(p) = photon_for_budget(t, PIXELS)
+                && p.photons > RUNGS[0].0
+            {
+                let r = (p.photons, p.gather_rays, p.spp);
+                assert!(predicted_seconds(r, PIXELS) <= t / 2.0, "{t} s: {r:?}");
+            }
+        }
+        // Four times the pixels: the same budget buys a smaller rung.
+        let big = photon_for_budget(16.0, 4 * PIXELS).expect("a photon render");
+        assert!(big.gather_rays * big.spp < 16 * 4);
+    }
 }

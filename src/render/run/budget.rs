@@ -40,7 +40,19 @@ impl Needs {
         let progressive = spec.is_progressive() as u64;
         let film = pixels * 48 * (1 + progressive);
         let geometry = triangles as u64 * 1200;
-        Needs {
+        // Auto may choose vcm (counted below) or, under a short time limit, a photon
+        // render: the larger needs of the two.
+        let photon = match &spec.integrator {
+            Integrator::Auto(passes) => super::auto::budget_photon(passes, pixels).map(|p| {
+                let photon = RenderSpec {
+                    integrator: Integrator::Photon(p),
+                    ..spec.clone()
+                };
+                Needs::of(&photon, pixels, triangles)
+            }),
+            _ => None,
+        };
+        let own = Needs {
             memory_bytes: maps
                 + irradiance
                 + film
@@ -49,6 +61,14 @@ impl Needs {
                 + (16 << 20),
             work: work(spec, pixels),
             result_bytes: pixels * 20 + progressive * pixels * 24 + (64 << 10),
+        };
+        match photon {
+            Some(p) => Needs {
+                memory_bytes: own.memory_bytes.max(p.memory_bytes),
+                work: own.work.max(p.work),
+                result_bytes: own.result_bytes.max(p.result_bytes),
+            },
+            None => own,
         }
     }
 }

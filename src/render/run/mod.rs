@@ -125,7 +125,8 @@ pub fn run(
     let chosen;
     let (spec, choice) = match &spec.integrator {
         Integrator::Auto(passes) => {
-            let (integrator, why) = auto::choose(scene, passes);
+            let (w, h) = spec.resolution((scene.camera.width, scene.camera.height));
+            let (integrator, why) = auto::choose(scene, passes, w as u64 * h as u64);
             chosen = RenderSpec {
                 integrator,
                 ..spec.clone()
@@ -140,7 +141,11 @@ pub fn run(
     let bidir = |modes| BidirPasses::new(scene, spec, &analysis, camera.clone(), modes);
     let mut progression: Box<dyn Progression> = match &spec.integrator {
         Integrator::Raytrace(_) | Integrator::Photon(_) => {
-            return one_shot(scene, spec, &analysis, inputs, control);
+            let mut out = one_shot(scene, spec, &analysis, inputs, control)?;
+            if let Some(why) = choice {
+                out.stats.effects.insert("integrator".into(), why);
+            }
+            return Ok(out);
         }
         Integrator::Ppm(ppm) => Box::new(PpmPasses::new(scene, spec, ppm, &analysis, camera)),
         Integrator::Pt(_) => Box::new(bidir(Modes::Pt)),
