@@ -9,7 +9,9 @@ use std::f64::consts::PI;
 
 use common::{analytic_pixels, point_lit, rel, render_checked, scene};
 use glam::DVec3;
-use photonbox::spec::{Integrator, Merging, Passes, RenderSpec, Stop};
+use photonbox::spec::{
+    Integrator, MAX_ITERATIONS, Merging, Passes, PhotonMapping, RenderSpec, Stop,
+};
 
 /// Every integrator of the family, with `passes` passes of one sample per pixel.
 fn family(passes: u32) -> [(&'static str, RenderSpec); 4] {
@@ -167,4 +169,56 @@ fn auto_connects_in_a_diffuse_room_and_merges_behind_glass() {
             "auto's {chosen} image differs from {chosen}'s"
         );
     }
+}
+
+/// Under a short time limit alone, auto renders a scene with glass as one photon render
+/// sized to the budget (the same bytes as that photon render asked for by name); with a
+/// pass count it keeps to vcm's converging passes; a diffuse room keeps bdpt whatever the
+/// budget.
+#[test]
+fn auto_takes_a_photon_render_for_a_short_budget_on_glass() {
+    let timed = |seconds: f64| Passes {
+        spp: 1,
+        stop: Stop {
+            iterations: MAX_ITERATIONS,
+            time_limit: Some(seconds),
+            target_error: None,
+        },
+    };
+    let glass = scene(GLASS_BOX);
+    let auto = render_checked(&glass, &RenderSpec::new(Integrator::Auto(timed(1.0))));
+    let why = &auto.stats.effects["integrator"];
+    assert_eq!(why.how, "auto chose photon", "{why:?}");
+    // 32x32 pixels: half a second holds the ladder's fifth rung (auto.rs).
+    let photon = PhotonMapping {
+        photons: 400_000,
+        caustic_photons: 400_000,
+        gather_rays: 16,
+        spp: 4,
+        ..PhotonMapping::PHOTON
+    };
+    assert!(
+        why.reason
+            .contains("400000 photons a map, 16 gather rays, 4 spp"),
+        "{why:?}"
+    );
+    let direct = render_checked(&glass, &RenderSpec::new(Integrator::Photon(photon)));
+    assert!(auto.image.pixels == direct.image.pixels);
+
+    // A pass count with the time limit: vcm's converging passes.
+    let long = render_checked(
+        &glass,
+        &RenderSpec::new(Integrator::Auto(Passes {
+            spp: 1,
+            stop: Stop {
+                iterations: 2,
+                time_limit: Some(1.0),
+                target_error: None,
+            },
+        })),
+    );
+    assert_eq!(long.stats.effects["integrator"].how, "auto chose vcm");
+    let room = scene(CLOSED_SPHERE);
+    let diffuse = render_checked(&room, &RenderSpec::new(Integrator::Auto(timed(0.5))));
+    assert_eq!(diffuse.stats.effects["integrator"].how, "auto chose bdpt");
 }

@@ -234,9 +234,16 @@ def report(results, budgets):
                 cells = []
                 for b in budgets:
                     target = at_time(r["mitsuba"], metric, b)
-                    # auto ran once per budget: the run that answers this one.
+                    # auto ran once per budget: the run that answers this one; where that
+                    # run ends before Mitsuba's error, the longest run if it made the same
+                    # choice (its passes are the same, run further: as every other row).
                     own = [p for p in curve if p.get("budget", b) == b]
                     t = time_to(own, metric, target) if target else None
+                    if t is None and target and own and "budget" in own[-1]:
+                        longest = max(p.get("budget", b) for p in curve)
+                        same = [p for p in curve if p.get("budget", b) == longest
+                                and p.get("integrator") == own[-1].get("integrator")]
+                        t = time_to(same, metric, target)
                     cells.append(t / b if t else None)
                 rows[integrator] = cells
             best = [min((c[i] for c in rows.values() if c[i] is not None), default=None)

@@ -108,8 +108,10 @@ pub fn uniform_sphere(u: Vec2) -> Vec3A {
 /// Cosine-weighted direction in the local hemisphere around +z (Malley's method);
 /// pdf cos(theta)/pi. The disk point comes from the polar map (r = sqrt(u.x), phi = 2 pi
 /// u.y), not Shirley and Chiu's concentric one: it has no branch and no division, and for
-/// independent samples (the only kind this renderer draws) the two are equivalent (measured:
-/// docs/performance-history.md, "polar map for cosine sampling").
+/// independent samples the two are equivalent (measured: docs/performance-history.md,
+/// "polar map for cosine sampling"). Both preserve area, so the stratified points of the
+/// bidirectional family (`qmc.rs`) stay stratified on the disk, in strata of poorer shape
+/// near its centre (Shirley and Chiu 1997); untested against the concentric map there.
 #[inline]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3A {
     let r = u.x.sqrt();
