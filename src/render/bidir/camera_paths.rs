@@ -41,13 +41,10 @@ struct Vertex<'v> {
 impl CameraPaths for CameraPass<'_> {
     type Scratch = ();
 
-    /// The pixel's point of its own Sobol sequence at this iteration (`qmc.rs`), or
-    /// independent numbers when the iteration has no sequence.
-    fn sampler(&self, seed: u64, pixel: u64, j: u32, spp: u32) -> Sampler {
-        match self.it.sequence {
-            Some((seed, n)) => Sampler::sobol(seed, Stream::Camera, pixel, n),
-            None => Sampler::new(seed, Stream::Camera, pixel * spp as u64 + j as u64),
-        }
+    /// The pixel's point of its own Sobol sequence at this iteration (`qmc.rs`): one
+    /// sample a pixel per iteration, so only the pixel names it.
+    fn sampler(&self, _: u64, pixel: u64, _: u32, _: u32) -> Sampler {
+        self.it.sampler(Stream::Camera, pixel)
     }
 
     fn radiance(&self, ray: &Ray, pixel: u64, s: &mut Sampler, _: &mut ()) -> Rgb {

@@ -1,5 +1,5 @@
 //! An iteration's light subpaths: one per camera sample, traced in parallel chunks, each
-//! path's random numbers from (seed, light paths, its index) alone. Their non-specular
+//! path's random numbers from (seed, light paths, its index, the iteration) alone. Their non-specular
 //! vertices are kept, in path order, for connections and merging; each is also connected to
 //! the camera (light tracing), the contributions splatted onto an image in path order, so
 //! that the result does not depend on the thread count.
@@ -122,10 +122,7 @@ fn trace_one(it: &Iteration, index: u64, out: &mut Chunk) {
     if !(it.picker.total > 0.0) {
         return;
     }
-    let mut s = match it.sequence {
-        Some((seed, n)) => Sampler::sobol(seed, Stream::LightPaths, index, n),
-        None => Sampler::new(it.seed, Stream::LightPaths, index),
-    };
+    let mut s = it.sampler(Stream::LightPaths, index);
     let (li, pick) = it.picker.pick(s.next_f32());
     let light = &it.scene.lights[li];
     let Some(e) = light.emit(s.next_2d(), s.next_2d()) else {

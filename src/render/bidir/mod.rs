@@ -33,7 +33,7 @@ use crate::render::outcome::RenderError;
 use crate::render::photon::{KdTree, KnnScratch, PhotonMaps};
 use crate::render::ppm::PpmState;
 use crate::render::progressive::{PassAt, PassOutput, PassResult, Progression};
-use crate::render::sampling::splitmix64;
+use crate::render::sampling::{Sampler, Stream, splitmix64};
 use crate::render::scene::Scene;
 use crate::render::stats::{RenderStats, StatsInput, collect};
 use crate::spec::{EffectSwitches, RenderSpec};
@@ -87,17 +87,22 @@ pub(super) struct Iteration<'a> {
     factors: Factors,
     max_depth: u32,
     effects: EffectSwitches,
-    /// The iteration's random seed (the pilot's light paths).
+    /// The seed of the subpaths' Sobol sequences (`qmc.rs`): the render's (the pilot's
+    /// own for the pilot iteration).
     seed: u64,
-    /// Where the subpaths' quasi-random numbers come from: the render's seed and this
-    /// iteration's index among all passes' iterations (0-based); `None` for independent
-    /// ones.
-    sequence: Option<(u64, u64)>,
+    /// This iteration's index among all passes' iterations (0-based): the point of every
+    /// sequence it draws.
+    n: u64,
     /// Light subpaths (one per pixel).
     paths: u64,
 }
 
 impl Iteration<'_> {
+    /// The random numbers of subpath `index` of `stream` in this iteration.
+    fn sampler(&self, stream: Stream, index: u64) -> Sampler {
+        Sampler::sobol(self.seed, stream, index, self.n)
+    }
+
     fn weight(&self, t: Technique) -> f32 {
         weight(self.modes, &self.factors, t)
     }
@@ -159,7 +164,7 @@ impl<'a> BidirPasses<'a> {
         }
     }
 
-    fn iteration(&self, seed: u64, sequence: Option<u64>, r2: f32) -> Iteration<'_> {
+    fn iteration(&self, seed: u64, n: u64, r2: f32) -> Iteration<'_> {
         let (w, h) = (self.camera.width as u64, self.camera.height as u64);
         let modes = self.modes;
         #[allow(unused_mut)]
@@ -177,7 +182,7 @@ impl<'a> BidirPasses<'a> {
             max_depth: self.spec.max_depth,
             effects: self.spec.effects,
             seed,
-            sequence: sequence.map(|n| (self.spec.seed, n)),
+            n,
             paths: w * h,
         }
     }
@@ -188,7 +193,7 @@ impl<'a> BidirPasses<'a> {
     /// 1/sqrt(density)).
     fn pilot_radius(&self, seed: u64, control: &Control) -> Result<f32, RenderError> {
         let r_max = MAX_RADIUS_FRACTION * self.scene.extent().max(f32::MIN_POSITIVE);
-        let mut pilot = self.iteration(splitmix64(seed ^ 0x7069_6c6f_7400), None, 0.0);
+        let mut pilot = self.iteration(splitmix64(seed ^ 0x7069_6c6f_7400), 0, 0.0);
         pilot.paths = PILOT_PATHS;
         pilot.modes = Modes::Bdpt;
         let paths = trace_light_paths(&pilot, control)?;
@@ -218,12 +223,11 @@ impl<'a> BidirPasses<'a> {
     /// samples it dropped.
     fn run_iteration(
         &self,
-        seed: u64,
         n: u64,
         r2: f32,
         control: &Control,
     ) -> Result<(Image, u64, u64), RenderError> {
-        let it = self.iteration(seed, Some(n), r2);
+        let it = self.iteration(self.spec.seed, n, r2);
         let lights = if self.modes.traces_light_paths() {
             trace_light_paths(&it, control)?
         } else {
@@ -239,7 +243,7 @@ impl<'a> BidirPasses<'a> {
             tree: tree.as_ref(),
             r2,
         };
-        let film = render_film(&pass, &it.camera, 1, seed, control)?;
+        let film = render_film(&pass, &it.camera, 1, it.seed, control)?;
         let mut image = film.image;
         for (px, s) in image.pixels.iter_mut().zip(&lights.splats.pixels) {
             for c in 0..3 {
@@ -268,7 +272,7 @@ impl Progression for BidirPasses<'_> {
         let (mut dropped, mut stored) = (0, 0);
         for j in 0..self.spp {
             let n = (pass as u64 - 1) * self.spp as u64 + j as u64;
-            let (image, d, s) = self.run_iteration(splitmix64(seed ^ j as u64), n, r2, control)?;
+            let (image, d, s) = self.run_iteration(n, r2, control)?;
             for (acc, px) in sum.iter_mut().zip(&image.pixels) {
                 for c in 0..3 {
                     acc[c] += px[c] as f64;

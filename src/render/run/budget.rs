@@ -62,13 +62,15 @@ impl Needs {
             work: work(spec, pixels),
             result_bytes: pixels * 20 + progressive * pixels * 24 + (64 << 10),
         };
-        match photon {
-            Some(p) => Needs {
-                memory_bytes: own.memory_bytes.max(p.memory_bytes),
-                work: own.work.max(p.work),
-                result_bytes: own.result_bytes.max(p.result_bytes),
-            },
-            None => own,
+        photon.map_or(own, |p| own.or(p))
+    }
+
+    /// Needs that cover both `self` and `other` (either may run).
+    fn or(self, other: Needs) -> Needs {
+        Needs {
+            memory_bytes: self.memory_bytes.max(other.memory_bytes),
+            work: self.work.max(other.work),
+            result_bytes: self.result_bytes.max(other.result_bytes),
         }
     }
 }

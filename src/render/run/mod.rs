@@ -122,11 +122,11 @@ pub fn run(
     check_reference(scene, spec, inputs.reference)?;
     // The job's identity is its spec as given; what renders may be auto's choice.
     let fingerprint = fingerprint(inputs.scene_key, spec);
+    let (width, height) = spec.resolution((scene.camera.width, scene.camera.height));
     let chosen;
     let (spec, choice) = match &spec.integrator {
         Integrator::Auto(passes) => {
-            let (w, h) = spec.resolution((scene.camera.width, scene.camera.height));
-            let (integrator, why) = auto::choose(scene, passes, w as u64 * h as u64);
+            let (integrator, why) = auto::choose(scene, passes, width as u64 * height as u64);
             chosen = RenderSpec {
                 integrator,
                 ..spec.clone()
@@ -136,23 +136,48 @@ pub fn run(
         _ => (spec, None),
     };
     let analysis = analyse(scene, spec);
+    let mut out = match &spec.integrator {
+        Integrator::Raytrace(_) | Integrator::Photon(_) => {
+            one_shot(scene, spec, &analysis, inputs, control)?
+        }
+        _ => progressive(
+            scene,
+            spec,
+            &analysis,
+            inputs,
+            fingerprint,
+            control,
+            on_pass,
+        )?,
+    };
+    if let Some(why) = choice {
+        out.stats.effects.insert("integrator".into(), why);
+    }
+    Ok(out)
+}
+
+/// The passes of a progressive integrator, from `inputs`' state if it has one;
+/// `fingerprint` names the job as given (before `auto` chose).
+fn progressive(
+    scene: &Scene,
+    spec: &RenderSpec,
+    analysis: &Analysis,
+    inputs: Inputs,
+    fingerprint: String,
+    control: &Control,
+    on_pass: OnPass,
+) -> Result<RenderOutput, RenderError> {
     let (width, height) = spec.resolution((scene.camera.width, scene.camera.height));
     let camera = scene.camera.clone().with_resolution(width, height);
-    let bidir = |modes| BidirPasses::new(scene, spec, &analysis, camera.clone(), modes);
+    let bidir = |modes| BidirPasses::new(scene, spec, analysis, camera.clone(), modes);
     let mut progression: Box<dyn Progression> = match &spec.integrator {
-        Integrator::Raytrace(_) | Integrator::Photon(_) => {
-            let mut out = one_shot(scene, spec, &analysis, inputs, control)?;
-            if let Some(why) = choice {
-                out.stats.effects.insert("integrator".into(), why);
-            }
-            return Ok(out);
-        }
-        Integrator::Ppm(ppm) => Box::new(PpmPasses::new(scene, spec, ppm, &analysis, camera)),
+        Integrator::Ppm(ppm) => Box::new(PpmPasses::new(scene, spec, ppm, analysis, camera)),
         Integrator::Pt(_) => Box::new(bidir(Modes::Pt)),
         Integrator::Lt(_) => Box::new(bidir(Modes::Lt)),
         Integrator::Bdpt(_) => Box::new(bidir(Modes::Bdpt)),
         Integrator::Vcm(_) => Box::new(bidir(Modes::Vcm)),
-        Integrator::Auto(_) => unreachable!("auto is resolved above"),
+        Integrator::Raytrace(_) | Integrator::Photon(_) => unreachable!("one-shot"),
+        Integrator::Auto(_) => unreachable!("auto is resolved before"),
     };
     let stop = spec.stop().expect("the progressive integrators stop");
     let run = ProgressiveRun {
@@ -164,11 +189,7 @@ pub fn run(
         radius: spec.merge_radius().map(|(alpha, r)| (alpha, r.is_some())),
         size: (width, height),
     };
-    let mut out = run_passes(progression.as_mut(), run, control, on_pass)?;
-    if let Some(why) = choice {
-        out.stats.effects.insert("integrator".into(), why);
-    }
-    Ok(out)
+    run_passes(progression.as_mut(), run, control, on_pass)
 }
 
 /// [`run`] with maps traced now, no reference, no state and no per-pass hook.
