@@ -19,6 +19,7 @@
 // `!(x > 0.0)` is deliberate throughout: unlike `x <= 0.0` it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod farm;
 pub mod render;
 pub mod server;
 pub mod spec;

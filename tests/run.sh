@@ -5,6 +5,7 @@
 # The browser tests (tests/browser/) drive Debian's headless Chromium through chromedriver and
 # Debian's Firefox ESR through geckodriver. Debian has no geckodriver package (bookworm): it
 # comes from crates.io then, into ~/.cargo/bin (a few minutes' build, once per machine).
+# The farm's tests (tests/farm/) start Debian's PostgreSQL server in a temporary directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="${CARGO_HOME:-$HOME/.cargo}/bin:$PATH"
@@ -15,6 +16,7 @@ packages=()
 command -v chromium >/dev/null || packages+=(chromium)
 command -v chromedriver >/dev/null || packages+=(chromium-driver)
 command -v firefox-esr >/dev/null || command -v firefox >/dev/null || packages+=(firefox-esr)
+compgen -G "/usr/lib/postgresql/*/bin/postgres" >/dev/null || packages+=(postgresql)
 if [ ${#packages[@]} -gt 0 ] || ! command -v geckodriver >/dev/null; then
   echo "tests/run.sh: installing what the tests need: ${packages[*]:-} geckodriver" >&2
   apt_get update -q

@@ -1,0 +1,114 @@
+//! A job's side of the queue: its tasks queued, its end (cancelled, or failed by a task at
+//! its failure limit) told to every worker through NOTIFY, its results read back in merge
+//! order, and the queue's depth per user.
+
+use sqlx::{Postgres, Row, Transaction};
+
+use super::queue::{CANCEL_CHANNEL, NewTask, TASKS_CHANNEL};
+use super::{FarmError, Queue, epoch_seconds};
+
+impl Queue {
+    /// Queue the tasks of job `job_id` (which must exist and have none yet), in merge
+    /// order, and wake the workers. One transaction: all of them or none.
+    pub async fn add_tasks(&self, job_id: i64, tasks: &[NewTask]) -> Result<(), FarmError> {
+        let mut tx = self.pool().begin().await?;
+        for (seq, t) in tasks.iter().enumerate() {
+            sqlx::query(
+                "INSERT INTO tasks (job_id, seq, user_id, job_created, unit, memory_bytes)
+                 SELECT id, $2, user_id, created, $3::jsonb, $4 FROM jobs WHERE id = $1",
+            )
+            .bind(job_id)
+            .bind(seq as i32)
+            .bind(serde_json::to_string(&t.unit)?)
+            .bind(t.memory_bytes as i64)
+            .execute(&mut *tx)
+            .await?;
+        }
+        let updated = sqlx::query("UPDATE jobs SET tasks_total = $2 WHERE id = $1")
+            .bind(job_id)
+            .bind(tasks.len() as i32)
+            .execute(&mut *tx)
+            .await?;
+        if updated.rows_affected() != 1 {
+            return Err(FarmError::NoSuchJob(job_id));
+        }
+        notify(&mut tx, TASKS_CHANNEL, job_id).await?;
+        tx.commit().await?;
+        Ok(())
+    }
+
+    /// Cancel job `id`: its queued and leased tasks are dropped and the workers holding
+    /// them told at once (NOTIFY). False if the job had ended already.
+    pub async fn cancel_job(&self, id: i64) -> Result<bool, FarmError> {
+        self.end_job(id, "cancelled", None).await
+    }
+
+    /// Fail job `id` with `reason` (a task at its failure limit).
+    pub async fn fail_job(&self, id: i64, reason: &str) -> Result<bool, FarmError> {
+        self.end_job(id, "failed", Some(reason)).await
+    }
+
+    async fn end_job(&self, id: i64, status: &str, error: Option<&str>) -> Result<bool, FarmError> {
+        let mut tx = self.pool().begin().await?;
+        let ended = sqlx::query(
+            "UPDATE jobs SET status = $2, error = $3, finished = $4
+              WHERE id = $1 AND status IN ('queued', 'running')",
+        )
+        .bind(id)
+        .bind(status)
+        .bind(error)
+        .bind(epoch_seconds())
+        .execute(&mut *tx)
+        .await?;
+        if ended.rows_affected() == 0 {
+            return Ok(false);
+        }
+        sqlx::query(
+            "UPDATE tasks SET state = 'cancelled', worker = NULL, lease_until = NULL
+              WHERE job_id = $1 AND state IN ('queued', 'leased')",
+        )
+        .bind(id)
+        .execute(&mut *tx)
+        .await?;
+        notify(&mut tx, CANCEL_CHANNEL, id).await?;
+        tx.commit().await?;
+        Ok(true)
+    }
+
+    /// Queued tasks per user (the queue depth of /metrics).
+    pub async fn depth_by_user(&self) -> Result<Vec<(i64, i64)>, FarmError> {
+        let rows = sqlx::query(
+            "SELECT user_id, count(*) FROM tasks WHERE state = 'queued'
+              GROUP BY user_id ORDER BY user_id",
+        )
+        .fetch_all(self.pool())
+        .await?;
+        rows.iter()
+            .map(|r| Ok((r.try_get(0)?, r.try_get(1)?)))
+            .collect()
+    }
+
+    /// The results of job `id`'s tasks in merge order (None for a task not done).
+    pub async fn results(&self, id: i64) -> Result<Vec<Option<Vec<u8>>>, FarmError> {
+        let rows = sqlx::query("SELECT result FROM tasks WHERE job_id = $1 ORDER BY seq")
+            .bind(id)
+            .fetch_all(self.pool())
+            .await?;
+        rows.iter().map(|r| Ok(r.try_get(0)?)).collect()
+    }
+}
+
+/// NOTIFY `channel` with `job_id`, delivered when `tx` commits (and not at all if it rolls
+/// back).
+pub(super) async fn notify(
+    tx: &mut Transaction<'_, Postgres>,
+    channel: &str,
+    job_id: i64,
+) -> Result<(), FarmError> {
+    sqlx::query("SELECT pg_notify($1, $2)")
+        .bind(channel)
+        .bind(job_id.to_string())
+        .execute(&mut **tx)
+        .await?;
+    Ok(())
+}

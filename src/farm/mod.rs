@@ -1,0 +1,82 @@
+//! The render farm's shared state in PostgreSQL (issue 21; design and failure model in
+//! docs/farm.md): the schema and its migrations (`migrations/`, applied at start), the task
+//! queue with leases and fenced results (`queue`), and the workers' registry (`workers`).
+//!
+//! The engine knows nothing of this module; the farm splits a job into units the engine
+//! renders independently (a range of passes, or a tile) and merges their results in order.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+mod jobs;
+pub mod queue;
+pub mod workers;
+
+pub use queue::{Completion, Lease, LeaseLost, NewTask, Queue};
+
+/// What one task renders.
+#[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum Unit {
+    /// Passes `first .. first + count` of a progressive job (1-based, as the engine counts).
+    Passes { first: u32, count: u32 },
+    /// Pixels `x0 .. x1` by `y0 .. y1` of a one-shot job.
+    Tile { x0: u32, y0: u32, x1: u32, y1: u32 },
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum FarmError {
+    #[error("database: {0}")]
+    Db(#[from] sqlx::Error),
+    #[error("schema migration: {0}")]
+    Migrate(#[from] sqlx::migrate::MigrateError),
+    #[error("a task's unit: {0}")]
+    Unit(#[from] serde_json::Error),
+    #[error("no job {0}")]
+    NoSuchJob(i64),
+    #[error("lease lost: {0}")]
+    Lost(#[from] LeaseLost),
+}
+
+/// This process's queue counters (its /metrics).
+#[derive(Debug, Default)]
+pub struct QueueMetrics {
+    claimed: AtomicU64,
+    leases_expired: AtomicU64,
+    fenced_refused: AtomicU64,
+}
+
+impl QueueMetrics {
+    fn count_claim(&self) {
+        self.claimed.fetch_add(1, Ordering::Relaxed);
+    }
+
+    fn count_expired(&self, n: u64) {
+        self.leases_expired.fetch_add(n, Ordering::Relaxed);
+    }
+
+    fn count_fenced(&self) {
+        self.fenced_refused.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Tasks this process claimed.
+    pub fn claimed(&self) -> u64 {
+        self.claimed.load(Ordering::Relaxed)
+    }
+
+    /// Expired leases this process reaped (their tasks queued again, or failed).
+    pub fn leases_expired(&self) -> u64 {
+        self.leases_expired.load(Ordering::Relaxed)
+    }
+
+    /// Results this process handed in that were refused: the lease had passed on.
+    pub fn fenced_refused(&self) -> u64 {
+        self.fenced_refused.load(Ordering::Relaxed)
+    }
+}
+
+/// Seconds since the epoch, as the jobs table keeps times.
+pub fn epoch_seconds() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}

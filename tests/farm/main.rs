@@ -1,0 +1,5 @@
+//! The farm against a real PostgreSQL (issue 21): the task queue's leases, fencing, failure
+//! limit, cancellation and fair share.
+
+mod pg;
+mod queue;
