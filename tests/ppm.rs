@@ -209,6 +209,52 @@ fn ppm_is_bit_identical_across_thread_counts() {
     assert!(one.iter().any(|&b| b != 0));
 }
 
+/// A farm's split (issue 21): passes 1-3, 4-5 and 6-7 rendered as separate pieces, each
+/// resumed from the state before it with the sum taken out, merged out of order, give the
+/// bits of one uninterrupted run.
+#[test]
+fn passes_rendered_in_pieces_merge_to_the_bits_of_one_run() {
+    let s = scene(CAUSTIC);
+    let params = ppm_params(4_000, 7);
+    let spec = RenderSpec::ppm(params);
+    let mut whole = None;
+    let full = run_with(&s, &spec, None, b"test", &mut |st| {
+        whole = Some(st.sum().clone());
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    let mut pieces = Vec::new();
+    let mut start: Option<PpmState> = None;
+    for end in [3, 5, 7] {
+        let mut at_end = None;
+        run_with(&s, &spec, start.take(), b"test", &mut |st| {
+            if st.passes == end {
+                at_end = Some(st.clone());
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        })
+        .unwrap();
+        let mut state = at_end.expect("the piece ran to its last pass");
+        pieces.push(state.take_sum());
+        start = Some(state);
+    }
+    let mut merged = pieces[2].clone();
+    merged.merge(&pieces[0]);
+    merged.merge(&pieces[1]);
+    // The sums themselves, not only the f32 images (which would hide a last-bit slip).
+    assert!(
+        Some(&merged) == whole.as_ref(),
+        "merged pieces differ from one run"
+    );
+    assert!(merged.mean(7) == full.image);
+    assert!(
+        pieces[0].mean(3) != full.image,
+        "the pieces are not the whole"
+    );
+}
+
 #[test]
 fn resumed_render_equals_an_uninterrupted_one() {
     let s = scene(CAUSTIC);

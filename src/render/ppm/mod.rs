@@ -15,10 +15,12 @@
 
 mod passes;
 mod state;
+mod sum;
 
 pub use crate::render::stats::{PassStats, PassTotals, PpmReport, StopReason};
 pub(crate) use passes::PpmPasses;
 pub use state::{PpmState, StateError, kept_in_history};
+pub use sum::PassSum;
 
 use crate::render::photon::{KnnScratch, PhotonMap};
 use crate::render::sampling::splitmix64;

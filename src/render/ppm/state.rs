@@ -2,26 +2,30 @@
 //! that a render stopped after pass j and resumed gives the same bytes as one that never
 //! stopped (the passes' random numbers depend only on the seed and the pass index).
 //!
-//! File format 2: the line `photonbox-ppm-state 2`, a little-endian u64 header length, the
-//! header as JSON, the sum image as little-endian f64 RGB triples, row-major, and last the
-//! SHA-256 of everything before it. A state with a flipped bit would otherwise resume
+//! File format 3: the line `photonbox-ppm-state 3`, a little-endian u64 header length, the
+//! header as JSON, the exact sum image ([`PassSum`]: little-endian i128 RGB triples,
+//! row-major), and last the SHA-256 of everything before it. A state with a flipped bit would otherwise resume
 //! without complaint and give other bytes than the render it claims to continue; with the
 //! digest, any change or truncation is [`StateError::Corrupt`] and the caller starts over.
-//! Format 1 (the same without the digest) cannot be verified, so it is refused as corrupt
-//! too: it costs one restart from pass 0.
+//! Format 1 (the same without the digest) cannot be verified, and format 2 (an f64 sum)
+//! cannot continue the exact sum, so both are refused as corrupt too: each costs one
+//! restart from pass 0.
 
 use std::io::{Read, Write};
 
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
+use super::sum::{PIXEL_BYTES, PassSum};
 use crate::render::film::Image;
 use crate::render::stats::{PassStats, PassTotals};
 
-const MAGIC: &[u8] = b"photonbox-ppm-state 2\n";
+const MAGIC: &[u8] = b"photonbox-ppm-state 3\n";
 
 /// Format 1's first line: no digest.
 const MAGIC_V1: &[u8] = b"photonbox-ppm-state 1\n";
+/// Format 2's first line: an f64 sum.
+const MAGIC_V2: &[u8] = b"photonbox-ppm-state 2\n";
 
 /// Bytes of the trailing SHA-256.
 const DIGEST: usize = 32;
@@ -78,9 +82,8 @@ pub struct PpmState {
     pub last: Option<PassStats>,
     /// Passes kept for reports: all of the first 256, then thinned (see [`kept_in_history`]).
     pub history: Vec<PassStats>,
-    /// Sum of the passes' images, in f64: the same sum in the same order on every run, and
-    /// far from losing the f32 passes' precision at any pass count we allow.
-    pub(super) sum: Vec<[f64; 3]>,
+    /// Sum of the passes' images, exact: the same bits however the passes were split.
+    pub(crate) sum: PassSum,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -116,22 +119,25 @@ impl PpmState {
             totals: PassTotals::default(),
             last: None,
             history: Vec::new(),
-            sum: vec![[0.0; 3]; width as usize * height as usize],
+            sum: PassSum::new(width, height),
         }
     }
 
     /// The image so far: the mean of the passes.
     pub fn image(&self) -> Image {
-        let inv = 1.0 / self.passes.max(1) as f64;
-        Image {
-            width: self.width,
-            height: self.height,
-            pixels: self
-                .sum
-                .iter()
-                .map(|p| p.map(|c| (c * inv) as f32))
-                .collect(),
-        }
+        self.sum.mean(self.passes)
+    }
+
+    /// The exact sum of the passes' images.
+    pub fn sum(&self) -> &PassSum {
+        &self.sum
+    }
+
+    /// Take the sum out, leaving zero: a render resumed from the state then sums only the
+    /// passes it runs itself, a piece that merges exactly with the others
+    /// ([`PassSum::merge`]; how a farm spreads one job's passes over machines).
+    pub fn take_sum(&mut self) -> PassSum {
+        std::mem::replace(&mut self.sum, PassSum::new(self.width, self.height))
     }
 
     /// Seconds spent in passes so far.
@@ -151,11 +157,7 @@ impl PpmState {
     }
 
     pub(crate) fn add_pass(&mut self, pass: &Image) {
-        for (s, p) in self.sum.iter_mut().zip(&pass.pixels) {
-            for c in 0..3 {
-                s[c] += p[c] as f64;
-            }
-        }
+        self.sum.add_image(pass);
     }
 
     pub fn save(&self, mut w: impl Write) -> std::io::Result<()> {
@@ -172,15 +174,11 @@ impl PpmState {
             history: self.history.clone(),
         };
         let json = serde_json::to_vec(&header).map_err(std::io::Error::other)?;
-        let mut buf = Vec::with_capacity(MAGIC.len() + 8 + json.len() + self.sum.len() * 24);
+        let mut buf = Vec::with_capacity(MAGIC.len() + 8 + json.len());
         buf.extend_from_slice(MAGIC);
         buf.extend_from_slice(&(json.len() as u64).to_le_bytes());
         buf.extend_from_slice(&json);
-        for p in &self.sum {
-            for c in p {
-                buf.extend_from_slice(&c.to_le_bytes());
-            }
-        }
+        self.sum.write_to(&mut buf);
         let digest = Sha256::digest(&buf);
         w.write_all(&buf)?;
         w.write_all(&digest)?;
@@ -206,6 +204,11 @@ impl PpmState {
         if file.starts_with(MAGIC_V1) {
             return Err(corrupt("format 1, which has no checksum to verify it by"));
         }
+        if file.starts_with(MAGIC_V2) {
+            return Err(corrupt(
+                "format 2, whose float sum the exact sum cannot continue",
+            ));
+        }
         if file.len() < MAGIC.len() + 8 + DIGEST {
             return Err(corrupt(format!("truncated ({} bytes)", file.len())));
         }
@@ -223,22 +226,19 @@ impl PpmState {
         }
         let (json, bytes) = rest.split_at(len as usize);
         let h: Header = serde_json::from_slice(json).map_err(|e| corrupt(e.to_string()))?;
-        let n = (h.width as usize)
+        // Sizes no render could have are corrupt, before any allocation for them.
+        (h.width as usize)
             .checked_mul(h.height as usize)
             .filter(|n| *n <= 1 << 32)
             .ok_or_else(|| corrupt(format!("{}x{} pixels", h.width, h.height)))?;
-        if bytes.len() != n * 24 {
-            return Err(corrupt(format!(
-                "{} bytes of image for {}x{} pixels",
+        let sum = PassSum::read_from(h.width, h.height, bytes).ok_or_else(|| {
+            corrupt(format!(
+                "{} bytes of image for {}x{} pixels ({PIXEL_BYTES} a pixel)",
                 bytes.len(),
                 h.width,
                 h.height
-            )));
-        }
-        let f = |i: usize| f64::from_le_bytes(bytes[i * 8..i * 8 + 8].try_into().unwrap());
-        let sum = (0..n)
-            .map(|i| [f(3 * i), f(3 * i + 1), f(3 * i + 2)])
-            .collect();
+            ))
+        })?;
         Ok(PpmState {
             fingerprint: h.fingerprint,
             width: h.width,
@@ -275,7 +275,11 @@ mod tests {
         let mut s = PpmState::new("scene+params".into(), 3, 2);
         s.passes = 2;
         s.r2_global = 0.1f64.powi(2) * (1.7 / 2.0);
-        s.sum[4] = [1.0 / 3.0, f64::MIN_POSITIVE, 1e300];
+        s.sum.add_image(&Image {
+            width: 3,
+            height: 2,
+            pixels: vec![[1.0 / 3.0, f32::MIN_POSITIVE, 1e30]; 6],
+        });
         s.record(PassStats {
             pass: 1,
             radius_global: 0.1,
@@ -315,9 +319,13 @@ mod checksum_tests {
         s.passes = 5;
         s.r2_global = 0.01;
         s.r2_caustic = 0.0004;
-        for (i, p) in s.sum.iter_mut().enumerate() {
-            *p = [i as f64 * 0.25, 1.0 / (i + 1) as f64, 7.5];
-        }
+        s.sum.add_image(&Image {
+            width: 4,
+            height: 3,
+            pixels: (0..12)
+                .map(|i| [i as f32 * 0.25, 1.0 / (i + 1) as f32, 7.5])
+                .collect(),
+        });
         let mut buf = Vec::new();
         s.save(&mut buf).unwrap();
         (s, buf)
@@ -362,5 +370,12 @@ mod checksum_tests {
         assert!(is_corrupt(&v1));
         let err = PpmState::load(&v1[..]).unwrap_err().to_string();
         assert!(err.contains("format 1"), "{err}");
+        // Format 2: an f64 sum, with its digest.
+        let mut v2 = MAGIC_V2.to_vec();
+        v2.extend_from_slice(&buf[MAGIC.len()..buf.len() - DIGEST]);
+        let digest = Sha256::digest(&v2);
+        v2.extend_from_slice(&digest);
+        let err = PpmState::load(&v2[..]).unwrap_err().to_string();
+        assert!(err.contains("format 2"), "{err}");
     }
 }

@@ -16,7 +16,7 @@ pub struct Needs {
     /// bounds what one render may take from a machine, whatever its parameters.
     pub work: f64,
     /// An upper estimate of the result files: the EXR (f32 RGBA), the PNG, and a
-    /// progressive render's saved state (the f64 sum image).
+    /// progressive render's saved state (the exact sum image, 48 bytes a pixel).
     pub result_bytes: u64,
 }
 
@@ -26,8 +26,8 @@ impl Needs {
     /// Memory: photons while traced and in their kd-trees (a global photon path stores at
     /// most a few photons: 3 per emitted photon bounds the built-in scenes' 1.35 with
     /// room), twice while traced (per-chunk buffers, then the map); the irradiance cache;
-    /// the film, its encodings and (progressive) the f64 sum, a pass's image and the saved
-    /// state, 48 + 48 bytes a pixel; the scene's description, primitives and BVH build,
+    /// the film and its encodings, 48 bytes a pixel, and (progressive) the exact sum (48),
+    /// a pass's image and the saved state's buffer (48), 48 + 96 bytes a pixel; the scene's description, primitives and BVH build,
     /// 1,200 bytes a triangle. The per-pixel and per-triangle figures are measured on the
     /// largest jobs the server's test limits accept (tests/server/memory.rs).
     pub fn of(spec: &RenderSpec, pixels: u64, triangles: usize) -> Needs {
@@ -38,7 +38,7 @@ impl Needs {
         let maps = (global + caustic) * PHOTON_BYTES * 2;
         let irradiance = global / 4 * 64;
         let progressive = spec.is_progressive() as u64;
-        let film = pixels * 48 * (1 + progressive);
+        let film = pixels * 48 * (1 + 2 * progressive);
         let geometry = triangles as u64 * 1200;
         // Auto may choose vcm (counted below) or, under a short time limit, a photon
         // render: the larger needs of the two.
@@ -60,7 +60,7 @@ impl Needs {
                 + geometry
                 + (16 << 20),
             work: work(spec, pixels),
-            result_bytes: pixels * 20 + progressive * pixels * 24 + (64 << 10),
+            result_bytes: pixels * 20 + progressive * pixels * 48 + (64 << 10),
         };
         photon.map_or(own, |p| own.or(p))
     }
