@@ -60,21 +60,8 @@ fn parse_args() -> anyhow::Result<Args> {
 /// Ten users with a job each, the tasks spread evenly.
 async fn queue_jobs(q: &Queue, tasks: usize) -> anyhow::Result<()> {
     for user in 1..=10i64 {
-        sqlx::query(
-            "INSERT INTO users (id, name, token_hash, admin, created)
-             VALUES ($1, $2, $2, false, 0)",
-        )
-        .bind(user)
-        .bind(format!("user{user}"))
-        .execute(q.pool())
-        .await?;
-        sqlx::query(
-            "INSERT INTO jobs (id, user_id, public, status, params_json, memory_bytes, created)
-             VALUES ($1, $1, false, 'queued', '{}', 1, $1)",
-        )
-        .bind(user)
-        .execute(q.pool())
-        .await?;
+        pg::insert_user(q.pool(), user, &format!("user{user}")).await;
+        pg::insert_job(q.pool(), user, user, user as f64, 1).await;
         let n = tasks / 10 + usize::from((user as usize) <= tasks % 10);
         let list: Vec<NewTask> = (0..n as u32)
             .map(|i| NewTask {

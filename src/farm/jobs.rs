@@ -20,7 +20,7 @@ impl Queue {
             .bind(job_id)
             .bind(seq as i32)
             .bind(serde_json::to_string(&t.unit)?)
-            .bind(t.memory_bytes as i64)
+            .bind(super::db_bytes(t.memory_bytes))
             .execute(&mut *tx)
             .await?;
         }

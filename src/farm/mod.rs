@@ -74,6 +74,11 @@ impl QueueMetrics {
     }
 }
 
+/// A byte count as the schema's BIGINT (beyond i64, which no machine has, as i64::MAX).
+fn db_bytes(bytes: u64) -> i64 {
+    i64::try_from(bytes).unwrap_or(i64::MAX)
+}
+
 /// Seconds since the epoch, as the jobs table keeps times.
 pub fn epoch_seconds() -> f64 {
     std::time::SystemTime::now()

@@ -14,10 +14,11 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use sqlx::postgres::{PgListener, PgPool, PgPoolOptions};
+use sqlx::postgres::{PgArguments, PgListener, PgPool, PgPoolOptions};
+use sqlx::query::Query;
 use sqlx::{Postgres, Row, Transaction};
 
-use super::{FarmError, QueueMetrics, Unit, epoch_seconds};
+use super::{FarmError, QueueMetrics, Unit, db_bytes, epoch_seconds};
 
 /// Channels of LISTEN/NOTIFY: new tasks (payload: the job id) and cancelled or failed jobs
 /// (payload: the job id).
@@ -127,7 +128,7 @@ impl Queue {
         lease: Duration,
     ) -> Result<Option<Lease>, FarmError> {
         self.reap_expired().await?;
-        let budget = memory_budget.min(i64::MAX as u64) as i64;
+        let budget = db_bytes(memory_budget);
         // A claim that lost every task of its user to simultaneous claims looks again.
         for _ in 0..4 {
             match self.claim_once(worker, budget, lease).await? {
@@ -201,13 +202,11 @@ impl Queue {
 
     /// Extend the lease by `lease` from now, if it is still this attempt's.
     pub async fn heartbeat(&self, l: &Lease, lease: Duration) -> Result<(), FarmError> {
-        let done = sqlx::query(
+        let done = for_lease(
             "UPDATE tasks SET lease_until = now() + make_interval(secs => $4)
               WHERE job_id = $1 AND seq = $2 AND attempt = $3 AND state = 'leased'",
+            l,
         )
-        .bind(l.job_id)
-        .bind(l.seq)
-        .bind(l.attempt)
         .bind(lease.as_secs_f64())
         .execute(&self.pool)
         .await?;
@@ -221,13 +220,11 @@ impl Queue {
     /// transaction, and only if the lease is still this attempt's.
     pub async fn complete(&self, l: &Lease, result: &[u8]) -> Result<Completion, FarmError> {
         let mut tx = self.pool.begin().await?;
-        let stored = sqlx::query(
+        let stored = for_lease(
             "UPDATE tasks SET state = 'done', result = $4, worker = NULL, lease_until = NULL
               WHERE job_id = $1 AND seq = $2 AND attempt = $3 AND state = 'leased'",
+            l,
         )
-        .bind(l.job_id)
-        .bind(l.seq)
-        .bind(l.attempt)
         .bind(result)
         .execute(&mut *tx)
         .await?;
@@ -253,16 +250,14 @@ impl Queue {
     /// Report that this attempt failed: the task is queued again, or, at the failure
     /// limit, fails its job with `reason`. A lease no longer held is not counted.
     pub async fn fail(&self, l: &Lease, reason: &str) -> Result<(), FarmError> {
-        let row = sqlx::query(
+        let row = for_lease(
             "UPDATE tasks SET failures = failures + 1, error = $4, worker = NULL,
                     lease_until = NULL,
                     state = CASE WHEN failures + 1 >= $5 THEN 'failed' ELSE 'queued' END
               WHERE job_id = $1 AND seq = $2 AND attempt = $3 AND state = 'leased'
              RETURNING state",
+            l,
         )
-        .bind(l.job_id)
-        .bind(l.seq)
-        .bind(l.attempt)
         .bind(reason)
         .bind(self.max_failures)
         .fetch_optional(&self.pool)
@@ -278,13 +273,11 @@ impl Queue {
     /// Give the task back without counting a failure (a worker shutting down): queued
     /// again, and this attempt's result fenced off.
     pub async fn release(&self, l: &Lease) -> Result<(), FarmError> {
-        sqlx::query(
+        for_lease(
             "UPDATE tasks SET state = 'queued', worker = NULL, lease_until = NULL
               WHERE job_id = $1 AND seq = $2 AND attempt = $3 AND state = 'leased'",
+            l,
         )
-        .bind(l.job_id)
-        .bind(l.seq)
-        .bind(l.attempt)
         .execute(&self.pool)
         .await?;
         Ok(())
@@ -336,6 +329,12 @@ impl Queue {
     }
 }
 
+/// `sql` with the lease's job, task and attempt bound to $1, $2 and $3 (every statement
+/// that acts on a lease names it by all three: the attempt is the fence).
+fn for_lease<'q>(sql: &'static str, l: &Lease) -> Query<'q, Postgres, PgArguments> {
+    sqlx::query(sql).bind(l.job_id).bind(l.seq).bind(l.attempt)
+}
+
 /// The user to serve next, and whether `tx` holds its row's lock: of the users with a
 /// queued task that fits `budget`, the one served longest ago that no concurrent claim is
 /// serving (SKIP LOCKED spreads simultaneous claims over the users, so round-robin holds
@@ -346,24 +345,26 @@ async fn next_user(
     tx: &mut Transaction<'_, Postgres>,
     budget: i64,
 ) -> Result<Option<(i64, bool)>, FarmError> {
-    const PICK: &str = "SELECT u.id FROM users u
-          WHERE EXISTS (SELECT 1 FROM tasks t
-                         WHERE t.user_id = u.id AND t.state = 'queued'
-                           AND t.memory_bytes <= $1)
-          ORDER BY u.last_served, u.id
-          LIMIT 1";
-    for lock in [true, false] {
-        let sql = if lock {
-            sqlx::AssertSqlSafe(format!("{PICK} FOR UPDATE SKIP LOCKED"))
-        } else {
-            sqlx::AssertSqlSafe(PICK.to_string())
+    macro_rules! pick {
+        ($lock:literal) => {
+            concat!(
+                "SELECT u.id FROM users u
+                  WHERE EXISTS (SELECT 1 FROM tasks t
+                                 WHERE t.user_id = u.id AND t.state = 'queued'
+                                   AND t.memory_bytes <= $1)
+                  ORDER BY u.last_served, u.id
+                  LIMIT 1 ",
+                $lock
+            )
         };
+    }
+    for (sql, locked) in [(pick!("FOR UPDATE SKIP LOCKED"), true), (pick!(""), false)] {
         let user: Option<i64> = sqlx::query_scalar(sql)
             .bind(budget)
             .fetch_optional(&mut **tx)
             .await?;
         if let Some(user) = user {
-            return Ok(Some((user, lock)));
+            return Ok(Some((user, locked)));
         }
     }
     Ok(None)

@@ -31,7 +31,7 @@ impl Queue {
         )
         .bind(id)
         .bind(threads as i32)
-        .bind(memory_bytes.min(i64::MAX as u64) as i64)
+        .bind(super::db_bytes(memory_bytes))
         .execute(self.pool())
         .await?;
         Ok(())

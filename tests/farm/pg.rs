@@ -235,7 +235,9 @@ impl Cluster {
             std::process::id(),
             N.fetch_add(1, Ordering::SeqCst)
         );
-        let mut admin = sqlx_connect(&self.url("postgres")).await;
+        let mut admin = <sqlx::PgConnection as sqlx::Connection>::connect(&self.url("postgres"))
+            .await
+            .unwrap();
         // The name is ours (digits and an underscore), so formatting it in is safe.
         let create = sqlx::AssertSqlSafe(format!("CREATE DATABASE {name}"));
         sqlx::raw_sql(create).execute(&mut admin).await.unwrap();
@@ -248,7 +250,30 @@ fn next_log() -> u32 {
     N.fetch_add(1, Ordering::SeqCst)
 }
 
-async fn sqlx_connect(url: &str) -> sqlx::PgConnection {
-    use sqlx::Connection;
-    sqlx::PgConnection::connect(url).await.unwrap()
+/// A user row, as the API will write it (the farm's tests and benchmark seed the store
+/// directly).
+pub async fn insert_user(pool: &sqlx::PgPool, id: i64, name: &str) {
+    sqlx::query(
+        "INSERT INTO users (id, name, token_hash, admin, created) VALUES ($1, $2, $2, false, 0)",
+    )
+    .bind(id)
+    .bind(name)
+    .execute(pool)
+    .await
+    .unwrap();
+}
+
+/// A queued job row of `user`, created at `created`, needing `memory` bytes (no tasks yet).
+pub async fn insert_job(pool: &sqlx::PgPool, id: i64, user: i64, created: f64, memory: u64) {
+    sqlx::query(
+        "INSERT INTO jobs (id, user_id, public, status, params_json, memory_bytes, created)
+         VALUES ($1, $2, false, 'queued', '{}', $3, $4)",
+    )
+    .bind(id)
+    .bind(user)
+    .bind(memory as i64)
+    .bind(created)
+    .execute(pool)
+    .await
+    .unwrap();
 }

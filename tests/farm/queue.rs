@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use photonbox::farm::{Completion, FarmError, Lease, LeaseLost, NewTask, Queue, Unit};
 
-use crate::pg::{Cluster, cluster};
+use crate::pg::{self, Cluster, cluster};
 
 const MINUTE: Duration = Duration::from_secs(60);
 /// A lease that has expired by the next statement (the database's now() moves on).
@@ -18,30 +18,13 @@ async fn queue() -> Queue {
 }
 
 async fn add_user(q: &Queue, id: i64, name: &str) {
-    sqlx::query(
-        "INSERT INTO users (id, name, token_hash, admin, created) VALUES ($1, $2, $2, false, 0)",
-    )
-    .bind(id)
-    .bind(name)
-    .execute(q.pool())
-    .await
-    .unwrap();
+    pg::insert_user(q.pool(), id, name).await;
 }
 
 /// Job `id` of `user`, created at `created`, with `n` tasks of one pass each needing
 /// `memory` bytes.
 async fn add_job(q: &Queue, id: i64, user: i64, created: f64, n: u32, memory: u64) {
-    sqlx::query(
-        "INSERT INTO jobs (id, user_id, public, status, params_json, memory_bytes, created)
-         VALUES ($1, $2, false, 'queued', '{}', $3, $4)",
-    )
-    .bind(id)
-    .bind(user)
-    .bind(memory as i64)
-    .bind(created)
-    .execute(q.pool())
-    .await
-    .unwrap();
+    pg::insert_job(q.pool(), id, user, created, memory).await;
     let tasks: Vec<NewTask> = (0..n)
         .map(|i| NewTask {
             unit: Unit::Passes {
@@ -60,6 +43,15 @@ async fn job_status(q: &Queue, id: i64) -> (String, Option<String>) {
         .fetch_one(q.pool())
         .await
         .unwrap()
+}
+
+/// The listener's next notification (channel, payload), which must come within 1 s.
+async fn next_note(listener: &mut sqlx::postgres::PgListener) -> (String, String) {
+    let note = tokio::time::timeout(Duration::from_secs(1), listener.recv())
+        .await
+        .expect("a notification within 1 s")
+        .unwrap();
+    (note.channel().to_string(), note.payload().to_string())
 }
 
 async fn claim(q: &Queue, lease: Duration) -> Option<Lease> {
@@ -252,11 +244,10 @@ async fn cancel_drops_the_tasks_and_tells_the_listeners() {
     let held = claim(&q, MINUTE).await.unwrap();
     let mut listener = q.listener().await.unwrap();
     assert!(q.cancel_job(10).await.unwrap());
-    let note = tokio::time::timeout(Duration::from_secs(1), listener.recv())
-        .await
-        .expect("a notification within 1 s")
-        .unwrap();
-    assert_eq!((note.channel(), note.payload()), ("photonbox_cancel", "10"));
+    assert_eq!(
+        next_note(&mut listener).await,
+        ("photonbox_cancel".into(), "10".into())
+    );
     assert!(matches!(
         q.heartbeat(&held, MINUTE).await,
         Err(FarmError::Lost(LeaseLost::Cancelled))
@@ -279,11 +270,10 @@ async fn new_tasks_wake_a_listener_and_show_in_the_depth() {
     add_job(&q, 10, 1, 1.0, 3, 1).await;
     add_job(&q, 20, 2, 2.0, 2, 1).await;
     for job in ["10", "20"] {
-        let note = tokio::time::timeout(Duration::from_secs(1), listener.recv())
-            .await
-            .expect("a notification within 1 s")
-            .unwrap();
-        assert_eq!((note.channel(), note.payload()), ("photonbox_tasks", job));
+        assert_eq!(
+            next_note(&mut listener).await,
+            ("photonbox_tasks".into(), job.into())
+        );
     }
     assert_eq!(q.depth_by_user().await.unwrap(), vec![(1, 3), (2, 2)]);
     claim(&q, MINUTE).await.unwrap();

@@ -226,11 +226,7 @@ impl PpmState {
         }
         let (json, bytes) = rest.split_at(len as usize);
         let h: Header = serde_json::from_slice(json).map_err(|e| corrupt(e.to_string()))?;
-        // Sizes no render could have are corrupt, before any allocation for them.
-        (h.width as usize)
-            .checked_mul(h.height as usize)
-            .filter(|n| *n <= 1 << 32)
-            .ok_or_else(|| corrupt(format!("{}x{} pixels", h.width, h.height)))?;
+        // The sum's size is checked against the header's before anything is allocated.
         let sum = PassSum::read_from(h.width, h.height, bytes).ok_or_else(|| {
             corrupt(format!(
                 "{} bytes of image for {}x{} pixels ({PIXEL_BYTES} a pixel)",
