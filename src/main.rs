@@ -23,6 +23,8 @@ enum Command {
     Sweep(cli::sweep::SweepArgs),
     /// Serve render jobs over HTTP.
     Serve(ServeArgs),
+    /// Render tasks of a farm's jobs (PostgreSQL store) on this machine.
+    Worker(WorkerArgs),
     /// Manage the server's users.
     #[command(subcommand)]
     User(UserCommand),
@@ -35,6 +37,9 @@ enum UserCommand {
         name: String,
         #[arg(long, default_value = "./photonbox-data")]
         data: PathBuf,
+        /// The farm's store (postgres://...) instead of the data folder's SQLite store.
+        #[arg(long)]
+        store: Option<String>,
         /// Give the user the admin role (sees and may cancel every job).
         #[arg(long)]
         admin: bool,
@@ -42,7 +47,41 @@ enum UserCommand {
 }
 
 #[derive(Args)]
+struct WorkerArgs {
+    /// The farm's store: postgres://user:password@host/database.
+    #[arg(long)]
+    store: String,
+    /// Render threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Memory this worker's renders may take (MiB); it claims only tasks that fit.
+    #[arg(long, default_value_t = LIMITS.memory_bytes >> 20)]
+    memory_mb: u64,
+    /// The worker's name in the farm (default: host name and process id).
+    #[arg(long)]
+    id: Option<String>,
+    /// Folder of the built-in scenes (default: ./scenes, else the source tree's).
+    #[arg(long)]
+    scenes: Option<PathBuf>,
+    /// Seconds a claimed task stays this worker's without a heartbeat (heartbeats come
+    /// three times as often); a worker that stops for longer loses its task to another.
+    #[arg(long, default_value_t = 30.0)]
+    lease_seconds: f64,
+}
+
+#[derive(Args)]
 struct ServeArgs {
+    /// The store: omitted, the embedded SQLite store in --data; postgres://... for a farm
+    /// (users, jobs, tasks and results in PostgreSQL; any number of `serve` and `worker`
+    /// processes share it).
+    #[arg(long)]
+    store: Option<String>,
+    /// With --store: serve the API only, render nothing on this machine.
+    #[arg(long)]
+    no_render: bool,
+    /// With --store: the lease of the tasks this machine renders (see `worker --help`).
+    #[arg(long, default_value_t = 30.0)]
+    lease_seconds: f64,
     /// Address to listen on (port 0: any free port; the address is printed).
     #[arg(long, default_value = "127.0.0.1:8080")]
     addr: String,
@@ -133,11 +172,18 @@ fn main() -> ExitCode {
         Command::Render(args) => cli::render::run_render(args),
         Command::Sweep(args) => cli::sweep::run_sweep(args),
         Command::Serve(args) => run_serve(args),
-        Command::User(UserCommand::Add { name, data, admin }) => {
-            photonbox::server::add_user(&data, &name, admin)
-                .map(|token| println!("{token}"))
-                .map_err(|e| bad(e.to_string()))
+        Command::Worker(args) => run_worker(args),
+        Command::User(UserCommand::Add {
+            name,
+            data,
+            store,
+            admin,
+        }) => match store {
+            Some(url) => photonbox::farm::run::add_user(&url, &name, admin),
+            None => photonbox::server::add_user(&data, &name, admin),
         }
+        .map(|token| println!("{token}"))
+        .map_err(|e| bad(format!("{e:#}"))),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -190,17 +236,58 @@ fn run_serve(a: ServeArgs) -> anyhow::Result<()> {
     if a.threads == Some(0) {
         return Err(bad("--threads must be at least 1"));
     }
-    let scenes = a.scenes.unwrap_or_else(|| {
-        let local = PathBuf::from("scenes");
-        if local.is_dir() {
-            local
-        } else {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
-        }
-    });
+    let scenes = a.scenes.unwrap_or_else(photonbox::server::default_scenes);
     let threads = a
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()));
+    let limits = photonbox::server::Limits {
+        body_bytes: a.max_body,
+        max_pixels: a.max_pixels,
+        max_photons: a.max_photons,
+        max_k: a.max_k,
+        max_iterations: a.max_iterations,
+        max_triangles: a.max_triangles,
+        max_queued_per_user: a.max_queued,
+        memory_bytes: mib(a.memory_mb, "--memory-mb")?,
+        max_work: a.max_work,
+        storage_bytes_per_user: mib(a.storage_mb, "--storage-mb")?,
+    };
+    let conn = photonbox::server::ConnLimits {
+        max_connections: a.max_connections,
+        header_timeout: seconds(a.header_timeout, "--header-timeout")?,
+        write_timeout: seconds(a.write_timeout, "--write-timeout")?,
+        drain: std::time::Duration::from_secs(10),
+    };
+    let body_timeout = seconds(a.body_timeout, "--body-timeout")?;
+    if let Some(store) = a.store {
+        if !store.starts_with("postgres://") && !store.starts_with("postgresql://") {
+            return Err(bad(format!(
+                "--store {store:?}: give a postgres:// URL (omit --store for the embedded SQLite store)"
+            )));
+        }
+        let lease = seconds(a.lease_seconds, "--lease-seconds")?;
+        let worker = (!a.no_render).then(|| photonbox::farm::WorkerConfig {
+            store: store.clone(),
+            id: default_worker_id(),
+            threads,
+            memory_bytes: limits.memory_bytes,
+            scenes,
+            lease,
+        });
+        return photonbox::farm::run::serve(photonbox::farm::run::FarmServeConfig {
+            store,
+            addr: a.addr,
+            limits,
+            conn,
+            body_timeout,
+            worker,
+        });
+    }
+    if a.no_render {
+        return Err(bad(
+            "--no-render is for a farm: give --store postgres://...",
+        ));
+    }
     photonbox::server::serve(photonbox::server::Config {
         addr: a.addr,
         data: a.data,
@@ -208,24 +295,35 @@ fn run_serve(a: ServeArgs) -> anyhow::Result<()> {
         threads,
         max_running: a.max_running,
         cache_bytes: mib(a.cache_mb, "--cache-mb")?,
-        limits: photonbox::server::Limits {
-            body_bytes: a.max_body,
-            max_pixels: a.max_pixels,
-            max_photons: a.max_photons,
-            max_k: a.max_k,
-            max_iterations: a.max_iterations,
-            max_triangles: a.max_triangles,
-            max_queued_per_user: a.max_queued,
-            memory_bytes: mib(a.memory_mb, "--memory-mb")?,
-            max_work: a.max_work,
-            storage_bytes_per_user: mib(a.storage_mb, "--storage-mb")?,
-        },
-        conn: photonbox::server::ConnLimits {
-            max_connections: a.max_connections,
-            header_timeout: seconds(a.header_timeout, "--header-timeout")?,
-            write_timeout: seconds(a.write_timeout, "--write-timeout")?,
-            drain: std::time::Duration::from_secs(10),
-        },
-        body_timeout: seconds(a.body_timeout, "--body-timeout")?,
+        limits,
+        conn,
+        body_timeout,
+    })
+}
+
+/// This machine's name and the process id: a worker's default name in the farm.
+fn default_worker_id() -> String {
+    let host = std::fs::read_to_string("/etc/hostname")
+        .ok()
+        .map(|h| h.trim().to_string())
+        .filter(|h| !h.is_empty())
+        .unwrap_or_else(|| "worker".into());
+    format!("{host}-{}", std::process::id())
+}
+
+fn run_worker(a: WorkerArgs) -> anyhow::Result<()> {
+    if a.threads == Some(0) {
+        return Err(bad("--threads must be at least 1"));
+    }
+    let threads = a
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()));
+    photonbox::farm::run::work(photonbox::farm::WorkerConfig {
+        store: a.store,
+        id: a.id.unwrap_or_else(default_worker_id),
+        threads,
+        memory_bytes: mib(a.memory_mb, "--memory-mb")?,
+        scenes: a.scenes.unwrap_or_else(photonbox::server::default_scenes),
+        lease: seconds(a.lease_seconds, "--lease-seconds")?,
     })
 }

@@ -9,7 +9,7 @@ use std::ops::ControlFlow;
 use common::{assert_all_finite, scene};
 use photonbox::render::photon::PhotonStore;
 use photonbox::render::ppm::{PpmState, StopReason};
-use photonbox::render::{Control, Image, Inputs, RenderError, RenderOutput, Scene, run};
+use photonbox::render::{Control, Image, Inputs, Piece, RenderError, RenderOutput, Scene, run};
 use photonbox::spec::{PhotonMapping, Progressive, RenderSpec, Stop};
 
 /// A point light over a large diffuse floor, seen from above (as in tests/analytic.rs).
@@ -253,6 +253,91 @@ fn passes_rendered_in_pieces_merge_to_the_bits_of_one_run() {
         pieces[0].mean(3) != full.image,
         "the pieces are not the whole"
     );
+}
+
+/// The exact sum of passes `first ..= last` rendered as a piece (a farm's task).
+fn piece_sum(
+    s: &Scene,
+    spec: &RenderSpec,
+    first: u32,
+    last: u32,
+) -> photonbox::render::ppm::PassSum {
+    let mut sum = None;
+    let inputs = Inputs {
+        scene_key: b"test",
+        piece: Some(Piece {
+            first,
+            count: last - first + 1,
+        }),
+        ..Inputs::fresh()
+    };
+    run(s, spec, inputs, &Control::none(), &mut |st| {
+        assert!(
+            st.passes >= first && st.passes <= last,
+            "pass {} outside the piece",
+            st.passes
+        );
+        if st.passes == last {
+            sum = Some(st.sum().clone());
+        }
+        ControlFlow::Continue(())
+    })
+    .unwrap();
+    sum.expect("the piece ran to its last pass")
+}
+
+#[test]
+fn pieces_rendered_apart_merge_to_the_bits_of_one_run() {
+    use photonbox::spec::{Integrator, Merging, Passes};
+    let s = scene(CAUSTIC);
+    let vcm = Merging {
+        passes: Passes {
+            spp: 1,
+            stop: Stop::after(7),
+        },
+        ..Merging::DEFAULT
+    };
+    // Both integrators with a radius that pass 1 computes (ppm from its photons, vcm from a
+    // pilot): a later piece must find the same one.
+    for spec in [
+        RenderSpec::ppm(ppm_params(4_000, 7)),
+        RenderSpec::new(Integrator::Vcm(vcm)),
+    ] {
+        let mut whole = None;
+        let full = run_with(&s, &spec, None, b"test", &mut |st| {
+            whole = Some(st.sum().clone());
+            ControlFlow::Continue(())
+        })
+        .unwrap();
+        // Rendered last piece first, as a farm might.
+        let mut merged = piece_sum(&s, &spec, 6, 7);
+        merged.merge(&piece_sum(&s, &spec, 3, 5));
+        merged.merge(&piece_sum(&s, &spec, 1, 2));
+        assert!(
+            Some(&merged) == whole.as_ref(),
+            "{spec:?}: merged pieces differ from one run"
+        );
+        assert!(merged.mean(7) == full.image);
+    }
+}
+
+#[test]
+fn a_piece_outside_its_render_is_refused() {
+    let s = scene(CAUSTIC);
+    let spec = RenderSpec::ppm(ppm_params(1_000, 4));
+    for (first, count) in [(0, 2), (4, 2), (2, 0)] {
+        let inputs = Inputs {
+            piece: Some(Piece { first, count }),
+            ..Inputs::fresh()
+        };
+        let got = run(&s, &spec, inputs, &Control::none(), &mut |_| {
+            ControlFlow::Continue(())
+        });
+        assert!(
+            matches!(got, Err(RenderError::Input(_))),
+            "piece {first}+{count} of 4 passes accepted"
+        );
+    }
 }
 
 #[test]

@@ -111,6 +111,7 @@ pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
         reference: reference.as_ref(),
         resume,
         scene_key: source.as_bytes(),
+        piece: None,
     };
     let mut on_pass = |state: &PpmState| {
         if let Err(e) = checkpoint(&a, state) {

@@ -5,34 +5,14 @@
 use sqlx::{Postgres, Row, Transaction};
 
 use super::queue::{CANCEL_CHANNEL, NewTask, TASKS_CHANNEL};
-use super::{FarmError, Queue, epoch_seconds};
+use super::{FarmError, Queue, Unit, epoch_seconds};
 
 impl Queue {
     /// Queue the tasks of job `job_id` (which must exist and have none yet), in merge
     /// order, and wake the workers. One transaction: all of them or none.
     pub async fn add_tasks(&self, job_id: i64, tasks: &[NewTask]) -> Result<(), FarmError> {
         let mut tx = self.pool().begin().await?;
-        for (seq, t) in tasks.iter().enumerate() {
-            sqlx::query(
-                "INSERT INTO tasks (job_id, seq, user_id, job_created, unit, memory_bytes)
-                 SELECT id, $2, user_id, created, $3::jsonb, $4 FROM jobs WHERE id = $1",
-            )
-            .bind(job_id)
-            .bind(seq as i32)
-            .bind(serde_json::to_string(&t.unit)?)
-            .bind(super::db_bytes(t.memory_bytes))
-            .execute(&mut *tx)
-            .await?;
-        }
-        let updated = sqlx::query("UPDATE jobs SET tasks_total = $2 WHERE id = $1")
-            .bind(job_id)
-            .bind(tasks.len() as i32)
-            .execute(&mut *tx)
-            .await?;
-        if updated.rows_affected() != 1 {
-            return Err(FarmError::NoSuchJob(job_id));
-        }
-        notify(&mut tx, TASKS_CHANNEL, job_id).await?;
+        queue_tasks(&mut tx, job_id, tasks).await?;
         tx.commit().await?;
         Ok(())
     }
@@ -88,14 +68,48 @@ impl Queue {
             .collect()
     }
 
-    /// The results of job `id`'s tasks in merge order (None for a task not done).
-    pub async fn results(&self, id: i64) -> Result<Vec<Option<Vec<u8>>>, FarmError> {
-        let rows = sqlx::query("SELECT result FROM tasks WHERE job_id = $1 ORDER BY seq")
-            .bind(id)
-            .fetch_all(self.pool())
-            .await?;
-        rows.iter().map(|r| Ok(r.try_get(0)?)).collect()
+    /// The units and results of job `id`'s tasks in merge order (None for a task not
+    /// done).
+    pub async fn results(&self, id: i64) -> Result<Vec<(Unit, Option<Vec<u8>>)>, FarmError> {
+        let rows =
+            sqlx::query("SELECT unit::text, result FROM tasks WHERE job_id = $1 ORDER BY seq")
+                .bind(id)
+                .fetch_all(self.pool())
+                .await?;
+        rows.iter()
+            .map(|r| Ok((serde_json::from_str(r.try_get(0)?)?, r.try_get(1)?)))
+            .collect()
     }
+}
+
+/// Queue job `job_id`'s tasks in merge order within `tx` and wake the workers when it
+/// commits.
+pub(super) async fn queue_tasks(
+    tx: &mut Transaction<'_, Postgres>,
+    job_id: i64,
+    tasks: &[NewTask],
+) -> Result<(), FarmError> {
+    for (seq, t) in tasks.iter().enumerate() {
+        sqlx::query(
+            "INSERT INTO tasks (job_id, seq, user_id, job_created, unit, memory_bytes)
+             SELECT id, $2, user_id, created, $3::jsonb, $4 FROM jobs WHERE id = $1",
+        )
+        .bind(job_id)
+        .bind(seq as i32)
+        .bind(serde_json::to_string(&t.unit)?)
+        .bind(super::db_bytes(t.memory_bytes))
+        .execute(&mut **tx)
+        .await?;
+    }
+    let updated = sqlx::query("UPDATE jobs SET tasks_total = $2 WHERE id = $1")
+        .bind(job_id)
+        .bind(tasks.len() as i32)
+        .execute(&mut **tx)
+        .await?;
+    if updated.rows_affected() != 1 {
+        return Err(FarmError::NoSuchJob(job_id));
+    }
+    notify(tx, TASKS_CHANNEL, job_id).await
 }
 
 /// NOTIFY `channel` with `job_id`, delivered when `tx` commits (and not at all if it rolls

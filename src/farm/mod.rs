@@ -7,11 +7,18 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
+pub mod api;
 mod jobs;
 pub mod queue;
+mod records;
+pub mod run;
+pub mod task;
+pub mod worker;
 pub mod workers;
 
 pub use queue::{Completion, Lease, LeaseLost, NewTask, Queue};
+pub use records::{JobImages, JobSource};
+pub use worker::{WorkerConfig, run_worker};
 
 /// What one task renders.
 #[derive(serde::Serialize, serde::Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
@@ -19,8 +26,10 @@ pub use queue::{Completion, Lease, LeaseLost, NewTask, Queue};
 pub enum Unit {
     /// Passes `first .. first + count` of a progressive job (1-based, as the engine counts).
     Passes { first: u32, count: u32 },
-    /// Pixels `x0 .. x1` by `y0 .. y1` of a one-shot job.
-    Tile { x0: u32, y0: u32, x1: u32, y1: u32 },
+    /// The whole job on one worker: a one-shot render (photon, raytrace), or a
+    /// progressive one that stops by time or error rather than a pass count (it cannot be
+    /// split ahead of time).
+    Whole,
 }
 
 #[derive(Debug, thiserror::Error)]

@@ -221,7 +221,7 @@ impl Queue {
     pub async fn complete(&self, l: &Lease, result: &[u8]) -> Result<Completion, FarmError> {
         let mut tx = self.pool.begin().await?;
         let stored = for_lease(
-            "UPDATE tasks SET state = 'done', result = $4, worker = NULL, lease_until = NULL
+            "UPDATE tasks SET state = 'done', result = $4, lease_until = NULL
               WHERE job_id = $1 AND seq = $2 AND attempt = $3 AND state = 'leased'",
             l,
         )
@@ -231,6 +231,7 @@ impl Queue {
         if stored.rows_affected() != 1 {
             drop(tx);
             self.metrics.count_fenced();
+            self.count_in_store("fenced_refused", 1).await?;
             return Ok(Completion::Refused(self.why_lost(l).await?));
         }
         let row = sqlx::query(
@@ -297,6 +298,10 @@ impl Queue {
         .fetch_all(&self.pool)
         .await?;
         self.metrics.count_expired(rows.len() as u64);
+        if !rows.is_empty() {
+            self.count_in_store("leases_expired", rows.len() as i64)
+                .await?;
+        }
         for r in &rows {
             if r.try_get::<String, _>("state")? == "failed" {
                 let reason = "its lease expired on every attempt";
@@ -305,6 +310,27 @@ impl Queue {
             }
         }
         Ok(rows.len() as u64)
+    }
+
+    /// Add `n` to a farm-wide counter (`counters`).
+    async fn count_in_store(&self, name: &str, n: i64) -> Result<(), FarmError> {
+        sqlx::query("UPDATE counters SET n = n + $2 WHERE name = $1")
+            .bind(name)
+            .bind(n)
+            .execute(&self.pool)
+            .await?;
+        Ok(())
+    }
+
+    /// The farm-wide counters: (expired leases, fenced results refused).
+    pub async fn farm_counters(&self) -> Result<(i64, i64), FarmError> {
+        let get = |name: &'static str| {
+            sqlx::query_scalar::<_, i64>("SELECT n FROM counters WHERE name = $1").bind(name)
+        };
+        Ok((
+            get("leases_expired").fetch_one(&self.pool).await?,
+            get("fenced_refused").fetch_one(&self.pool).await?,
+        ))
     }
 
     fn failed_reason(&self, seq: i32, reason: &str) -> String {

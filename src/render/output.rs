@@ -29,15 +29,32 @@ pub fn to_srgb8(image: &Image, exposure: f32) -> RgbImage {
 }
 
 pub fn write_png(image: &Image, exposure: f32, path: &Path) -> image::ImageResult<()> {
-    to_srgb8(image, exposure).save_with_format(path, ImageFormat::Png)
+    std::fs::write(path, encode_png(image, exposure)?)?;
+    Ok(())
 }
 
 /// Linear radiance as 32-bit float RGB OpenEXR.
 pub fn write_exr(image: &Image, path: &Path) -> image::ImageResult<()> {
+    std::fs::write(path, encode_exr(image)?)?;
+    Ok(())
+}
+
+/// The bytes of [`write_png`]'s file: every front end (a file, a farm's store) writes
+/// these, so the same image is the same bytes everywhere.
+pub fn encode_png(image: &Image, exposure: f32) -> image::ImageResult<Vec<u8>> {
+    let mut out = std::io::Cursor::new(Vec::new());
+    to_srgb8(image, exposure).write_to(&mut out, ImageFormat::Png)?;
+    Ok(out.into_inner())
+}
+
+/// The bytes of [`write_exr`]'s file.
+pub fn encode_exr(image: &Image) -> image::ImageResult<Vec<u8>> {
     let data: Vec<f32> = image.pixels.iter().flatten().copied().collect();
     let buf =
         Rgb32FImage::from_raw(image.width, image.height, data).expect("buffer matches dimensions");
-    DynamicImage::ImageRgb32F(buf).save_with_format(path, ImageFormat::OpenExr)
+    let mut out = std::io::Cursor::new(Vec::new());
+    DynamicImage::ImageRgb32F(buf).write_to(&mut out, ImageFormat::OpenExr)?;
+    Ok(out.into_inner())
 }
 
 /// Read a linear RGB image (OpenEXR or anything the image crate reads) as f32.

@@ -44,6 +44,15 @@ pub(crate) trait Progression {
     /// radii) first, when the integrator has any.
     fn pass(&mut self, state: &mut PpmState, at: PassAt, control: &Control) -> PassResult;
 
+    /// Set the state's initial radii (and squared radii) as pass 1 (`at`) would, without
+    /// rendering it: a piece of passes that starts later needs them (see [`Piece`]).
+    fn initial_radii(
+        &mut self,
+        state: &mut PpmState,
+        at: PassAt,
+        control: &Control,
+    ) -> Result<(), RenderError>;
+
     /// The render's statistics but for its times, error and progressive section.
     fn stats(&self, state: &PpmState) -> RenderStats;
 }
@@ -63,6 +72,27 @@ pub(crate) struct ProgressiveRun<'a> {
     /// was given.
     pub radius: Option<(f64, bool)>,
     pub size: (u32, u32),
+    /// Render only these passes (a farm's task), from a state positioned before them.
+    pub piece: Option<Piece>,
+}
+
+/// Passes `first .. first + count` (1-based) of a progressive render, rendered on their
+/// own: the state starts as the whole render's would be after pass `first - 1` (its pass
+/// count and radii; pass 1's initial radii computed as pass 1 computes them) but with a
+/// zero sum, so the sum at the end holds these passes only and merges exactly with the
+/// other pieces' ([`crate::render::ppm::PassSum::merge`]). Radii are replayed by the same
+/// f64 schedule, so each pass reads with the bits it would read with in one run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Piece {
+    pub first: u32,
+    pub count: u32,
+}
+
+impl Piece {
+    /// The piece's last pass.
+    pub fn last(&self) -> u32 {
+        self.first + self.count - 1
+    }
 }
 
 /// Render passes until `run.stop` says enough (or `on_pass`, called with the state after
@@ -73,8 +103,19 @@ pub(crate) fn run_passes(
     control: &Control,
     on_pass: &mut dyn FnMut(&PpmState) -> ControlFlow<()>,
 ) -> Result<RenderOutput, RenderError> {
-    let mut state = start_state(run.resume, &run.fingerprint, run.size)?;
-    let tracker = control.tracker(Phase::Passes, run.stop.iterations as u64);
+    let piece_stop;
+    let (mut state, stop) = match run.piece {
+        None => (
+            start_state(run.resume, &run.fingerprint, run.size)?,
+            run.stop,
+        ),
+        Some(piece) => {
+            piece_stop = check_piece(piece, &run)?;
+            let state = piece_state(integrator, piece, &run, control)?;
+            (state, &piece_stop)
+        }
+    };
+    let tracker = control.tracker(Phase::Passes, stop.iterations as u64);
     tracker.advance(state.passes as u64);
     // The error of the image so far against this render's reference (a resumed state's
     // recorded error may be against another one).
@@ -83,7 +124,7 @@ pub(crate) fn run_passes(
         _ => None,
     };
     let stopped_by = loop {
-        if let Some(reason) = should_stop(&state, run.stop, error) {
+        if let Some(reason) = should_stop(&state, stop, error) {
             break reason;
         }
         control.check()?;
@@ -146,6 +187,52 @@ fn add_pass(state: &mut PpmState, pass: u32, out: &PassOutput, alpha: Option<f64
         state.r2_global = next_r2(state.r2_global, pass, alpha);
         state.r2_caustic = next_r2(state.r2_caustic, pass, alpha);
     }
+}
+
+/// A piece must lie within a render that stops by its pass count alone (a time limit or a
+/// target error cannot be split ahead of time), and not continue a saved state. Its stop:
+/// its last pass.
+fn check_piece(piece: Piece, run: &ProgressiveRun) -> Result<Stop, RenderError> {
+    let input = |m: &str| Err(RenderError::Input(m.to_string()));
+    if piece.first == 0 || piece.count == 0 || piece.first.checked_add(piece.count).is_none() {
+        return input("a piece of passes starts at pass 1 or later and has at least one");
+    }
+    if piece.last() > run.stop.iterations {
+        return input("a piece of passes ends after the render's last pass");
+    }
+    if run.stop.time_limit.is_some() || run.stop.target_error.is_some() {
+        return input("only a render that stops by its pass count splits into pieces");
+    }
+    if run.resume.is_some() {
+        return input("a piece of passes does not continue a saved state");
+    }
+    Ok(Stop::after(piece.last()))
+}
+
+/// The state before `piece`'s first pass, its sum zero.
+fn piece_state(
+    integrator: &mut dyn Progression,
+    piece: Piece,
+    run: &ProgressiveRun,
+    control: &Control,
+) -> Result<PpmState, RenderError> {
+    let mut state = PpmState::new(run.fingerprint.clone(), run.size.0, run.size.1);
+    if piece.first == 1 {
+        return Ok(state);
+    }
+    let first = PassAt {
+        pass: 1,
+        seed: pass_seed(run.seed, 1),
+    };
+    integrator.initial_radii(&mut state, first, control)?;
+    if let Some((alpha, _)) = run.radius {
+        for pass in 1..piece.first {
+            state.r2_global = next_r2(state.r2_global, pass, alpha);
+            state.r2_caustic = next_r2(state.r2_caustic, pass, alpha);
+        }
+    }
+    state.passes = piece.first - 1;
+    Ok(state)
 }
 
 /// A fresh state, or the one to resume if it is this render's.

@@ -4,26 +4,26 @@
 //! The server depends on the engine (`crate::render`), never the reverse.
 
 mod api;
-mod auth;
+pub(crate) mod auth;
 mod cache;
-mod error;
+pub(crate) mod error;
 mod events;
 mod extract;
 mod job_routes;
-mod jobs;
-mod listen;
+pub(crate) mod jobs;
+pub(crate) mod listen;
 mod metrics;
-mod needs;
+pub(crate) mod needs;
 mod openapi;
 mod render_job;
 mod results;
 mod runner;
-mod scenes;
+pub(crate) mod scenes;
 mod scheduler;
 mod state;
-mod store;
-mod submit;
-mod views;
+pub(crate) mod store;
+pub(crate) mod submit;
+pub(crate) mod views;
 mod web;
 
 use std::collections::HashMap;
@@ -73,7 +73,7 @@ pub struct App {
     jobs: Jobs,
     scheduler: Scheduler,
     cache: MapCache,
-    catalog: SceneCatalog,
+    catalog: Arc<SceneCatalog>,
     metrics: Metrics,
     /// Users by token hash (tokens never change, so entries never go stale).
     users: Mutex<HashMap<String, User>>,
@@ -218,7 +218,7 @@ impl App {
             submit: tokio::sync::Mutex::new(()),
             scheduler: Scheduler::new(config.max_running, config.limits.memory_bytes),
             cache: MapCache::new(config.cache_bytes),
-            catalog: SceneCatalog::load(config.scenes.clone()),
+            catalog: Arc::new(SceneCatalog::load(config.scenes.clone())),
             config,
             store,
             jobs: Jobs::default(),
@@ -302,6 +302,16 @@ pub fn app(app: AppRef) -> axum::Router {
     api::router(app)
 }
 
+/// The built-in scenes' folder: ./scenes if there is one, else the source tree's.
+pub fn default_scenes() -> PathBuf {
+    let local = PathBuf::from("scenes");
+    if local.is_dir() {
+        local
+    } else {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes")
+    }
+}
+
 /// Run the server until SIGINT or SIGTERM. Prints the address and a sign-in URL.
 pub fn serve(config: Config) -> anyhow::Result<()> {
     let (app, admin_token) = App::open(config.clone())?;
@@ -352,7 +362,7 @@ pub fn serve(config: Config) -> anyhow::Result<()> {
     Ok(())
 }
 
-async fn shutdown_signal() {
+pub(crate) async fn shutdown_signal() {
     let ctrl_c = async {
         let _ = tokio::signal::ctrl_c().await;
     };

@@ -80,6 +80,7 @@ impl JobRender<'_> {
             reference: self.reference,
             resume,
             scene_key: self.scene.text.as_bytes(),
+            piece: None,
         };
         let mut on_pass = |state: &PpmState| self.after_pass(state, &live);
         let out =

@@ -20,6 +20,15 @@ pub enum SceneRefError {
     Internal(String),
 }
 
+impl std::fmt::Display for SceneRefError {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self {
+            SceneRefError::Invalid { path, message } => write!(f, "{path}: {message}"),
+            SceneRefError::Internal(m) => f.write_str(m),
+        }
+    }
+}
+
 /// The scene of a job: parsed and validated, with the texts the job is keyed by. Texts, not
 /// the parsed JSON: a `serde_json::Value` of a large mesh takes about ten times its text,
 /// and the render would carry it to the end.

@@ -15,8 +15,8 @@ use super::api::{blocking, visible};
 use super::auth::User;
 use super::error::ApiError;
 use super::jobs::{JobRequest, JobSpec, from_json};
-use super::needs::JobNeeds;
-use super::scenes::resolve_request;
+use super::needs::{JobNeeds, Limits};
+use super::scenes::{SceneCatalog, resolve_request};
 use super::store::{JobRow, Status, now};
 use super::views::{AuthErrors, ErrorBody, SelfLink, Submitted};
 use crate::spec::SpecForm;
@@ -41,25 +41,59 @@ pub async fn submit_job(
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ApiError> {
-    let value = read_body(&app, &headers, body).await?;
+    let limits = &app.config.limits;
+    let value = read_body(limits.body_bytes, app.config.body_timeout, &headers, body).await?;
+    let admitted = admit(&app.catalog, limits, &user, value).await?;
+    if let Some(reference) = admitted.spec.reference_job {
+        check_reference(&app, &user, reference, admitted.size)?;
+    }
+    let Admitted { row, uploaded, .. } = admitted;
+    let id = commit(&app, &user, row, uploaded).await?;
+    let body = Submitted {
+        id,
+        status: Status::Queued,
+        links: SelfLink {
+            self_: format!("/api/jobs/{id}"),
+        },
+    };
+    let location = [(header::LOCATION, body.links.self_.clone())];
+    Ok((StatusCode::ACCEPTED, location, Json(body)).into_response())
+}
+
+/// A job request that passed its checks, ready to commit.
+pub(crate) struct Admitted {
+    pub row: JobRow,
+    pub spec: JobSpec,
+    /// The uploaded scene's text (None: a built-in scene).
+    pub uploaded: Option<std::sync::Arc<str>>,
+    pub size: (u32, u32),
+    /// The engine's estimate of the render's work (`render::Needs::work`).
+    pub work: f64,
+}
+
+/// Check a job request (`POST /api/jobs`'s body) for `user`: its fields, params and scene,
+/// and its needs against `limits`. Every store's front end admits jobs through here.
+pub(crate) async fn admit(
+    catalog: &std::sync::Arc<SceneCatalog>,
+    limits: &Limits,
+    user: &User,
+    value: Value,
+) -> Result<Admitted, ApiError> {
     let req: JobRequest = from_json(value, "")?;
     let form: SpecForm = from_json(req.params.unwrap_or(json!({})), "params")?;
     let spec = JobSpec::from_form(&form)?;
     // Reading and parsing the scene (and its meshes) is blocking work.
-    let (app2, render) = (app.clone(), spec.render.clone());
+    let (catalog, render, limits2) = (catalog.clone(), spec.render.clone(), limits.clone());
     let (scene_name, scene_value) = (req.scene_name.clone(), req.scene);
     let (scene, needs) = blocking(move || {
-        let scene = resolve_request(&app2.catalog, scene_value, scene_name.as_deref())?;
+        let scene = resolve_request(&catalog, scene_value, scene_name.as_deref())?;
         let needs = JobNeeds::estimate(&scene.desc, &render);
-        needs.check(&render, &app2.config.limits)?;
+        needs.check(&render, &limits2)?;
         Ok((scene, needs))
     })
     .await?;
     let camera = &scene.desc.camera;
     let size = spec.render.resolution((camera.width, camera.height));
-    if let Some(reference) = spec.reference_job {
-        check_reference(&app, &user, reference, size)?;
-    }
     let uploaded = req.scene_name.is_none().then_some(scene.text.clone());
     let row = JobRow {
         id: 0,
@@ -80,23 +114,23 @@ pub async fn submit_job(
         error: None,
         stats_json: None,
     };
-    drop(scene);
-    let id = commit(&app, &user, row, uploaded).await?;
-    let body = Submitted {
-        id,
-        status: Status::Queued,
-        links: SelfLink {
-            self_: format!("/api/jobs/{id}"),
-        },
-    };
-    let location = [(header::LOCATION, body.links.self_.clone())];
-    Ok((StatusCode::ACCEPTED, location, Json(body)).into_response())
+    Ok(Admitted {
+        row,
+        spec,
+        uploaded,
+        size,
+        work: needs.render.work,
+    })
 }
 
-/// The request body as JSON, read within the size and time limits; a body declared too
+/// The request body as JSON, read within `limit` bytes and `timeout`; a body declared too
 /// large is refused before it is read.
-async fn read_body(app: &AppRef, headers: &HeaderMap, body: Body) -> Result<Value, ApiError> {
-    let limit = app.config.limits.body_bytes;
+pub(crate) async fn read_body(
+    limit: usize,
+    timeout: std::time::Duration,
+    headers: &HeaderMap,
+    body: Body,
+) -> Result<Value, ApiError> {
     let too_large = || {
         ApiError::new(
             StatusCode::PAYLOAD_TOO_LARGE,
@@ -111,14 +145,14 @@ async fn read_body(app: &AppRef, headers: &HeaderMap, body: Body) -> Result<Valu
     if declared.is_some_and(|n| n > limit as u64) {
         return Err(too_large());
     }
-    let read = tokio::time::timeout(app.config.body_timeout, axum::body::to_bytes(body, limit));
+    let read = tokio::time::timeout(timeout, axum::body::to_bytes(body, limit));
     let body = read.await.map_err(|_| {
         ApiError::new(
             StatusCode::REQUEST_TIMEOUT,
             Some("body"),
             format!(
                 "the request body did not arrive within {} s",
-                app.config.body_timeout.as_secs_f64()
+                timeout.as_secs_f64()
             ),
         )
     })?;

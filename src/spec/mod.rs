@@ -302,6 +302,18 @@ impl RenderSpec {
         self.stop().is_some()
     }
 
+    /// The number of passes, when it is known before the render starts: a progressive
+    /// integrator (not `auto`, which may choose a one-shot render) that stops by its pass
+    /// count alone. Such a render can be split into pieces of passes ahead of time (a
+    /// farm's tasks).
+    pub fn passes_known_ahead(&self) -> Option<u32> {
+        if matches!(self.integrator, Integrator::Auto(_)) {
+            return None;
+        }
+        let stop = self.stop()?;
+        (stop.time_limit.is_none() && stop.target_error.is_none()).then_some(stop.iterations)
+    }
+
     /// The output size: the override, else the scene camera's (`camera`).
     pub fn resolution(&self, camera: (u32, u32)) -> (u32, u32) {
         (

@@ -1,5 +1,6 @@
 //! The farm against a real PostgreSQL (issue 21): the task queue's leases, fencing, failure
 //! limit, cancellation and fair share.
 
+mod e2e;
 mod pg;
 mod queue;

@@ -256,15 +256,29 @@ impl<'a> BidirPasses<'a> {
 }
 
 impl Progression for BidirPasses<'_> {
-    fn pass(&mut self, state: &mut PpmState, at: PassAt, control: &Control) -> PassResult {
-        let PassAt { pass, seed } = at;
-        if pass == 1 && self.modes.merges() {
+    /// The merge radius, given or from a pilot iteration of pass 1's seed; none without
+    /// merging.
+    fn initial_radii(
+        &mut self,
+        state: &mut PpmState,
+        at: PassAt,
+        control: &Control,
+    ) -> Result<(), RenderError> {
+        if self.modes.merges() {
             let r = match self.radius {
                 Some(r) => r,
-                None => self.pilot_radius(seed, control)?,
+                None => self.pilot_radius(at.seed, control)?,
             };
             state.radius_initial = [r as f64, 0.0];
             state.r2_global = (r as f64).powi(2);
+        }
+        Ok(())
+    }
+
+    fn pass(&mut self, state: &mut PpmState, at: PassAt, control: &Control) -> PassResult {
+        let pass = at.pass;
+        if pass == 1 {
+            self.initial_radii(state, at, control)?;
         }
         let r2 = state.r2_global as f32;
         let t0 = Instant::now();

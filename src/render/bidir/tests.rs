@@ -65,6 +65,7 @@ fn furnace_error(modes: Modes, broken: Option<(Broken, f32)>) -> f64 {
         seed: 1,
         radius: spec.merge_radius().map(|(a, r)| (a, r.is_some())),
         size: (24, 24),
+        piece: None,
     };
     let out = run_passes(&mut bidir, run, &Control::none(), &mut |_| {
         ControlFlow::Continue(())

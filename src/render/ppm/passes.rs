@@ -10,6 +10,7 @@ use crate::render::control::Control;
 use crate::render::effects::Analysis;
 use crate::render::film::render_film;
 use crate::render::integrator::Shader;
+use crate::render::outcome::RenderError;
 use crate::render::photon::{Density, PhotonMap, PhotonMaps, RadiusLookup, build_photon_maps};
 use crate::render::progressive::{PassAt, PassOutput, PassResult, Progression};
 use crate::render::scene::Scene;
@@ -110,6 +111,28 @@ impl Progression for PpmPasses<'_> {
         };
         self.last = Some((maps, radii));
         Ok(out)
+    }
+
+    /// Pass 1's maps, traced for their photons' spacing and dropped (unless the radius is
+    /// given, when nothing is traced).
+    fn initial_radii(
+        &mut self,
+        state: &mut PpmState,
+        at: PassAt,
+        control: &Control,
+    ) -> Result<(), RenderError> {
+        let maps = match self.ppm.radius {
+            Some(_) => PhotonMaps::none(self.analysis.photon_params.clone()),
+            None => {
+                let params = crate::render::photon::PhotonParams {
+                    seed: at.seed,
+                    ..self.analysis.photon_params.clone()
+                };
+                build_photon_maps(self.scene, &params, control)?
+            }
+        };
+        self.set_initial_radii(state, &maps);
+        Ok(())
     }
 
     /// Stats of the last pass's maps (none if a resumed render had no pass left to run).

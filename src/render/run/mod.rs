@@ -20,6 +20,7 @@ use crate::render::oneshot::render_with_maps;
 use crate::render::outcome::{RenderError, RenderOutput};
 use crate::render::photon::{PhotonMaps, PhotonParams, build_photon_maps};
 use crate::render::ppm::{PpmPasses, PpmState};
+pub use crate::render::progressive::Piece;
 use crate::render::progressive::{Progression, ProgressiveRun, run_passes};
 use crate::render::scene::Scene;
 use crate::spec::{Integrator, RenderSpec, SpecForm};
@@ -92,6 +93,10 @@ pub struct Inputs<'a> {
     /// Identifies the scene: its source text, or any text that changes when it does. A
     /// progressive render's state is fingerprinted by it and the spec.
     pub scene_key: &'a [u8],
+    /// Render only these passes of a progressive render (a farm's task; see [`Piece`]):
+    /// the output's image is then of no use, the caller takes the piece's exact sum from
+    /// the state `on_pass` sees after its last pass.
+    pub piece: Option<Piece>,
 }
 
 impl Inputs<'_> {
@@ -102,6 +107,7 @@ impl Inputs<'_> {
             reference: None,
             resume: None,
             scene_key: b"",
+            piece: None,
         }
     }
 }
@@ -188,6 +194,7 @@ fn progressive(
         seed: spec.seed,
         radius: spec.merge_radius().map(|(alpha, r)| (alpha, r.is_some())),
         size: (width, height),
+        piece: inputs.piece,
     };
     run_passes(progression.as_mut(), run, control, on_pass)
 }
@@ -211,9 +218,9 @@ fn one_shot(
     inputs: Inputs,
     control: &Control,
 ) -> Result<RenderOutput, RenderError> {
-    if inputs.resume.is_some() {
+    if inputs.resume.is_some() || inputs.piece.is_some() {
         return Err(RenderError::Input(format!(
-            "a saved state continues only a progressive render ({})",
+            "a saved state or a piece of passes is only of a progressive render ({})",
             crate::spec::progressive_names()
         )));
     }

@@ -1,0 +1,209 @@
+//! Users and jobs in the farm's store: what the API instances write at submit and read
+//! for their views, and what a worker reads to render a task and writes at a job's end.
+//! Rows are the SQLite store's (`server::store::JobRow`), so both stores describe a job
+//! alike.
+
+use sqlx::Row;
+
+use super::queue::NewTask;
+use super::{FarmError, Queue, epoch_seconds};
+use crate::server::auth::User;
+use crate::server::store::{JobRow, Status};
+
+/// What a worker needs to render a job's tasks.
+#[derive(Clone, Debug)]
+pub struct JobSource {
+    pub params_json: String,
+    pub scene_name: Option<String>,
+    pub scene_json: Option<String>,
+}
+
+/// A job's images, merged.
+pub struct JobImages {
+    pub exr: Vec<u8>,
+    pub png: Vec<u8>,
+}
+
+const JOB_COLUMNS: &str = "id, user_id, public, status, scene_name,
+    COALESCE(octet_length(scene_json), 0)::BIGINT AS scene_bytes, params_json, memory_bytes,
+    result_estimate, width, height, created, started, finished, error, stats_json,
+    tasks_done, tasks_total";
+
+fn job_row(r: &sqlx::postgres::PgRow) -> Result<(JobRow, f64), sqlx::Error> {
+    let side = |c: &str| -> Result<Option<u32>, sqlx::Error> {
+        Ok(r.try_get::<Option<i32>, _>(c)?
+            .and_then(|v| u32::try_from(v).ok()))
+    };
+    let status: String = r.try_get("status")?;
+    let (done, total): (i32, i32) = (r.try_get("tasks_done")?, r.try_get("tasks_total")?);
+    let row = JobRow {
+        id: r.try_get("id")?,
+        user_id: r.try_get("user_id")?,
+        public: r.try_get("public")?,
+        status: Status::parse(&status).unwrap_or(Status::Failed),
+        scene_name: r.try_get("scene_name")?,
+        scene_bytes: r.try_get::<i64, _>("scene_bytes")?.max(0) as u64,
+        result_bytes: 0,
+        result_estimate: r.try_get::<i64, _>("result_estimate")?.max(0) as u64,
+        params_json: r.try_get("params_json")?,
+        size: side("width")?.zip(side("height")?),
+        memory_bytes: r.try_get::<i64, _>("memory_bytes")?.max(0) as u64,
+        created: r.try_get("created")?,
+        started: r.try_get("started")?,
+        finished: r.try_get("finished")?,
+        error: r.try_get("error")?,
+        stats_json: r.try_get("stats_json")?,
+    };
+    let progress = if total > 0 {
+        done as f64 / total as f64
+    } else {
+        0.0
+    };
+    Ok((row, progress))
+}
+
+impl Queue {
+    /// Add a user with the hash of its token.
+    pub async fn add_user(
+        &self,
+        name: &str,
+        token_hash: &str,
+        admin: bool,
+    ) -> Result<i64, FarmError> {
+        let id: i64 = sqlx::query_scalar(
+            "INSERT INTO users (id, name, token_hash, admin, created)
+             VALUES ((SELECT COALESCE(max(id), 0) + 1 FROM users), $1, $2, $3, $4)
+             RETURNING id",
+        )
+        .bind(name)
+        .bind(token_hash)
+        .bind(admin)
+        .bind(epoch_seconds())
+        .fetch_one(self.pool())
+        .await?;
+        Ok(id)
+    }
+
+    pub async fn user_by_token_hash(&self, hash: &str) -> Result<Option<User>, FarmError> {
+        let row = sqlx::query("SELECT id, name, admin FROM users WHERE token_hash = $1")
+            .bind(hash)
+            .fetch_optional(self.pool())
+            .await?;
+        Ok(row
+            .map(|r| -> Result<User, sqlx::Error> {
+                Ok(User {
+                    id: r.try_get(0)?,
+                    name: r.try_get(1)?,
+                    admin: r.try_get(2)?,
+                })
+            })
+            .transpose()?)
+    }
+
+    /// Jobs of `user` not yet started.
+    pub async fn queued_jobs_of(&self, user: i64) -> Result<i64, FarmError> {
+        Ok(
+            sqlx::query_scalar(
+                "SELECT count(*) FROM jobs WHERE user_id = $1 AND status = 'queued'",
+            )
+            .bind(user)
+            .fetch_one(self.pool())
+            .await?,
+        )
+    }
+
+    /// Commit a new queued job and its tasks in one transaction (durable before the API
+    /// acknowledges it), and wake the workers. Returns its id: random in 1..2^53, as the
+    /// SQLite store's.
+    pub async fn submit_job(
+        &self,
+        row: &JobRow,
+        scene_json: Option<&str>,
+        tasks: &[NewTask],
+    ) -> Result<i64, FarmError> {
+        let mut tx = self.pool().begin().await?;
+        let id = rand::random_range(1..(1i64 << 53));
+        sqlx::query(
+            "INSERT INTO jobs (id, user_id, public, status, scene_name, scene_json, params_json,
+                               memory_bytes, result_estimate, width, height, created)
+             VALUES ($1, $2, $3, 'queued', $4, $5, $6, $7, $8, $9, $10, $11)",
+        )
+        .bind(id)
+        .bind(row.user_id)
+        .bind(row.public)
+        .bind(&row.scene_name)
+        .bind(scene_json)
+        .bind(&row.params_json)
+        .bind(super::db_bytes(row.memory_bytes))
+        .bind(super::db_bytes(row.result_estimate))
+        .bind(row.size.map(|s| s.0 as i32))
+        .bind(row.size.map(|s| s.1 as i32))
+        .bind(row.created)
+        .execute(&mut *tx)
+        .await?;
+        super::jobs::queue_tasks(&mut tx, id, tasks).await?;
+        tx.commit().await?;
+        Ok(id)
+    }
+
+    /// A job's row and its progress (tasks done over tasks).
+    pub async fn job(&self, id: i64) -> Result<Option<(JobRow, f64)>, FarmError> {
+        let sql = format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = $1");
+        let row = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(id)
+            .fetch_optional(self.pool())
+            .await?;
+        Ok(row.as_ref().map(job_row).transpose()?)
+    }
+
+    /// What a worker reads to render job `id`'s tasks.
+    pub async fn job_source(&self, id: i64) -> Result<JobSource, FarmError> {
+        let r = sqlx::query("SELECT params_json, scene_name, scene_json FROM jobs WHERE id = $1")
+            .bind(id)
+            .fetch_optional(self.pool())
+            .await?
+            .ok_or(FarmError::NoSuchJob(id))?;
+        Ok(JobSource {
+            params_json: r.try_get("params_json")?,
+            scene_name: r.try_get("scene_name")?,
+            scene_json: r.try_get("scene_json")?,
+        })
+    }
+
+    /// End a running job with its images and stats (the worker that completed its last
+    /// task). False if the job had ended meanwhile (cancelled).
+    pub async fn finish_job(
+        &self,
+        id: i64,
+        images: &JobImages,
+        stats_json: &str,
+    ) -> Result<bool, FarmError> {
+        let done = sqlx::query(
+            "UPDATE jobs SET status = 'done', finished = $2, result_exr = $3, result_png = $4,
+                    stats_json = $5
+              WHERE id = $1 AND status = 'running'",
+        )
+        .bind(id)
+        .bind(epoch_seconds())
+        .bind(&images.exr)
+        .bind(&images.png)
+        .bind(stats_json)
+        .execute(self.pool())
+        .await?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// A finished job's image (`exr` or `png`).
+    pub async fn job_image(&self, id: i64, exr: bool) -> Result<Option<Vec<u8>>, FarmError> {
+        let sql = if exr {
+            "SELECT result_exr FROM jobs WHERE id = $1"
+        } else {
+            "SELECT result_png FROM jobs WHERE id = $1"
+        };
+        let bytes: Option<Option<Vec<u8>>> = sqlx::query_scalar(sql)
+            .bind(id)
+            .fetch_optional(self.pool())
+            .await?;
+        Ok(bytes.flatten())
+    }
+}

@@ -1,0 +1,212 @@
+//! What a farm does with a job's render, apart from the queue: split it into units
+//! ([`split`]), render one unit on a worker ([`render_unit`]) and merge the units' results
+//! into the job's image ([`merge`]). A progressive render that stops by its pass count is
+//! split into pieces of passes, each rendered through the engine's one entry point with
+//! `Inputs::piece`; the pieces' exact sums (`PassSum`) merge to the bits of one run, so a
+//! farm's image is the same bytes as the same job on one box. Anything else is one `Whole`
+//! unit.
+
+use std::ops::ControlFlow;
+use std::sync::atomic::AtomicBool;
+
+use super::{NewTask, Unit};
+use crate::render::ppm::PassSum;
+use crate::render::{Control, Image, Inputs, Piece, Scene, run};
+use crate::spec::RenderSpec;
+
+/// Work (ray-sized units, `render::Needs::work`) a task aims at: a few seconds of one
+/// core, so that a lost task costs little and a job spreads over many workers.
+const TASK_WORK: f64 = 1e7;
+
+/// A job of at least this many passes is split into at least this many tasks, however
+/// small its passes: enough for a few workers to share.
+const MIN_TASKS: u32 = 8;
+
+/// The tasks of a job whose render is `spec`, of total work `work`, each needing
+/// `memory_bytes`.
+pub fn split(spec: &RenderSpec, work: f64, memory_bytes: u64) -> Vec<NewTask> {
+    let task = |unit| NewTask { unit, memory_bytes };
+    let Some(passes) = spec.passes_known_ahead() else {
+        return vec![task(Unit::Whole)];
+    };
+    let per_pass = work / passes as f64;
+    let by_work = (TASK_WORK / per_pass.max(1.0)).ceil() as u32;
+    let per_task = by_work.clamp(1, passes.div_ceil(MIN_TASKS).max(1));
+    (1..=passes)
+        .step_by(per_task as usize)
+        .map(|first| {
+            task(Unit::Passes {
+                first,
+                count: per_task.min(passes - first + 1),
+            })
+        })
+        .collect()
+}
+
+/// A unit's result as stored: a piece's exact sum ([`PassSum::write_to`]), or a whole
+/// render's image (little-endian f32 RGB, row-major).
+pub fn render_unit(
+    scene: &Scene,
+    spec: &RenderSpec,
+    scene_key: &[u8],
+    unit: Unit,
+    cancel: &AtomicBool,
+) -> Result<Vec<u8>, crate::render::RenderError> {
+    let control = Control {
+        cancel: Some(cancel),
+        progress: None,
+    };
+    let mut bytes = Vec::new();
+    match unit {
+        Unit::Passes { first, count } => {
+            let piece = Piece { first, count };
+            let inputs = Inputs {
+                scene_key,
+                piece: Some(piece),
+                ..Inputs::fresh()
+            };
+            let mut sum = None;
+            run(scene, spec, inputs, &control, &mut |st| {
+                if st.passes == piece.last() {
+                    sum = Some(st.sum().clone());
+                }
+                ControlFlow::Continue(())
+            })?;
+            sum.expect("a piece runs to its last pass or fails")
+                .write_to(&mut bytes);
+        }
+        Unit::Whole => {
+            let inputs = Inputs {
+                scene_key,
+                ..Inputs::fresh()
+            };
+            let out = run(scene, spec, inputs, &control, &mut |_| {
+                ControlFlow::Continue(())
+            })?;
+            for px in &out.image.pixels {
+                for c in px {
+                    bytes.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+        }
+    }
+    Ok(bytes)
+}
+
+/// The job's image from its units' results (in the job's task order), or why not.
+pub fn merge(size: (u32, u32), units: &[(Unit, Vec<u8>)]) -> Result<Image, String> {
+    let (width, height) = size;
+    if let [(Unit::Whole, bytes)] = units {
+        return image_of(width, height, bytes);
+    }
+    let mut sum = PassSum::new(width, height);
+    let mut passes = 0u32;
+    for (unit, bytes) in units {
+        let Unit::Passes { count, .. } = unit else {
+            return Err("a job mixes whole and partial units".into());
+        };
+        let piece = PassSum::read_from(width, height, bytes).ok_or_else(|| {
+            format!(
+                "a result of {} bytes is not a {width}x{height} sum",
+                bytes.len()
+            )
+        })?;
+        sum.merge(&piece);
+        passes += count;
+    }
+    Ok(sum.mean(passes))
+}
+
+fn image_of(width: u32, height: u32, bytes: &[u8]) -> Result<Image, String> {
+    let pixels = width as usize * height as usize;
+    if bytes.len() != pixels * 12 {
+        return Err(format!(
+            "a result of {} bytes is not a {width}x{height} image",
+            bytes.len()
+        ));
+    }
+    let mut image = Image::new(width, height);
+    for (px, chunk) in image.pixels.iter_mut().zip(bytes.chunks_exact(12)) {
+        for (c, b) in px.iter_mut().zip(chunk.chunks_exact(4)) {
+            *c = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        }
+    }
+    Ok(image)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spec::{Progressive, Stop};
+
+    fn ppm(iterations: u32) -> RenderSpec {
+        RenderSpec::ppm(Progressive {
+            stop: Stop::after(iterations),
+            ..Progressive::DEFAULT
+        })
+    }
+
+    fn pieces(tasks: &[NewTask]) -> Vec<(u32, u32)> {
+        tasks
+            .iter()
+            .map(|t| match t.unit {
+                Unit::Passes { first, count } => (first, count),
+                Unit::Whole => panic!("whole"),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn passes_are_covered_once_in_order() {
+        for (iterations, work) in [(48, 48e4), (48, 48e9), (7, 7e9), (1, 1.0), (100, 1e6)] {
+            let tasks = split(&ppm(iterations), work, 5);
+            let p = pieces(&tasks);
+            let mut next = 1;
+            for &(first, count) in &p {
+                assert_eq!(first, next, "{iterations} passes: {p:?}");
+                assert!(count >= 1);
+                next += count;
+            }
+            assert_eq!(next, iterations + 1, "{iterations} passes: {p:?}");
+            assert!(tasks.iter().all(|t| t.memory_bytes == 5));
+        }
+    }
+
+    #[test]
+    fn small_passes_still_spread_and_large_ones_go_one_by_one() {
+        assert_eq!(split(&ppm(48), 48e4, 0).len(), 8);
+        assert_eq!(split(&ppm(48), 48e9, 0).len(), 48);
+    }
+
+    #[test]
+    fn renders_that_stop_by_time_go_whole() {
+        let spec = RenderSpec::ppm(Progressive {
+            stop: Stop {
+                time_limit: Some(5.0),
+                ..Stop::after(10)
+            },
+            ..Progressive::DEFAULT
+        });
+        assert!(matches!(
+            split(&spec, 1e9, 0)[..],
+            [NewTask {
+                unit: Unit::Whole,
+                ..
+            }]
+        ));
+    }
+
+    #[test]
+    fn a_whole_image_round_trips_and_a_short_result_is_refused() {
+        let mut image = Image::new(3, 2);
+        image.pixels[4] = [1.5, -0.0, f32::MIN_POSITIVE];
+        let bytes: Vec<u8> = image
+            .pixels
+            .iter()
+            .flatten()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        assert!(merge((3, 2), &[(Unit::Whole, bytes.clone())]).unwrap() == image);
+        assert!(merge((3, 2), &[(Unit::Whole, bytes[1..].to_vec())]).is_err());
+    }
+}

@@ -1,0 +1,303 @@
+//! `photonbox worker`: a render box of the farm. It claims a task (waking on NOTIFY, with a
+//! poll as fallback), renders its unit on its own rayon pool while a heartbeat extends the
+//! lease, and hands the result in; the worker whose completion is the job's last merges
+//! the job's image. A cancel (NOTIFY on the cancel channel) or a lost lease stops the
+//! render at its next check; a shutdown (SIGTERM, Ctrl-C) stops it and gives the task
+//! back. Nothing here is needed for correctness but the lease: a worker that stops
+//! heartbeating, for whatever reason, loses its task to another after the lease.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use anyhow::Context;
+use tokio::sync::watch;
+
+use super::queue::CANCEL_CHANNEL;
+use super::records::{JobImages, JobSource};
+use super::task::{merge, render_unit};
+use super::{Completion, FarmError, Lease, Queue};
+use crate::render::{Control, RenderError, Scene, output};
+use crate::server::jobs::JobSpec;
+use crate::server::scenes::{ResolvedScene, SceneCatalog, resolve_uploaded};
+
+/// How long a worker sleeps between claims when no NOTIFY wakes it (a notification lost
+/// while its listener reconnected, or a lease that expired and nobody announced).
+const POLL: Duration = Duration::from_secs(2);
+
+/// How long a worker keeps trying to hand in a finished result while the store is out of
+/// reach, and how often.
+const HAND_IN_PATIENCE: Duration = Duration::from_secs(300);
+const RETRY: Duration = Duration::from_millis(500);
+
+/// Everything `photonbox worker` can be told.
+#[derive(Clone, Debug)]
+pub struct WorkerConfig {
+    pub store: String,
+    /// The worker's name in the registry (unique in the farm).
+    pub id: String,
+    pub threads: usize,
+    /// Memory this worker's renders may take: it claims only tasks that fit.
+    pub memory_bytes: u64,
+    pub scenes: PathBuf,
+    /// A claim's lease; heartbeats renew it three times per lease.
+    pub lease: Duration,
+}
+
+/// A job's scene, built, and its spec: kept while the worker renders that job's tasks.
+struct Prepared {
+    job_id: i64,
+    scene: Arc<Scene>,
+    resolved: ResolvedScene,
+    spec: JobSpec,
+    size: (u32, u32),
+}
+
+/// Run a worker until `shutdown` turns true.
+pub async fn run_worker(
+    cfg: WorkerConfig,
+    mut shutdown: watch::Receiver<bool>,
+) -> anyhow::Result<()> {
+    let queue = Queue::connect(&cfg.store, 4)
+        .await
+        .context("connecting to the store")?;
+    queue
+        .register_worker(&cfg.id, cfg.threads as u32, cfg.memory_bytes)
+        .await?;
+    let scenes = cfg.scenes.clone();
+    let catalog = Arc::new(tokio::task::spawn_blocking(move || SceneCatalog::load(scenes)).await?);
+    let pool = Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(cfg.threads)
+            .thread_name(|i| format!("worker-render-{i}"))
+            .build()?,
+    );
+    let mut listener = queue.listener().await?;
+    let mut prepared: Option<Arc<Prepared>> = None;
+    tracing::info!(worker = cfg.id, "worker started");
+    while !*shutdown.borrow() {
+        match queue.claim(&cfg.id, cfg.memory_bytes, cfg.lease).await {
+            Ok(Some(lease)) => {
+                let task = Task {
+                    queue: &queue,
+                    cfg: &cfg,
+                    catalog: &catalog,
+                    pool: &pool,
+                };
+                prepared = task
+                    .run(lease, prepared, &mut listener, &mut shutdown)
+                    .await;
+                continue;
+            }
+            Ok(None) => {}
+            Err(e) => tracing::warn!("claiming a task: {e}"),
+        }
+        let _ = queue.worker_alive(&cfg.id).await;
+        tokio::select! {
+            n = listener.recv() => if n.is_err() { tokio::time::sleep(RETRY).await },
+            _ = tokio::time::sleep(POLL) => {}
+            _ = shutdown.changed() => {}
+        }
+    }
+    let _ = queue.deregister_worker(&cfg.id).await;
+    tracing::info!(worker = cfg.id, "worker stopped");
+    Ok(())
+}
+
+struct Task<'a> {
+    queue: &'a Queue,
+    cfg: &'a WorkerConfig,
+    catalog: &'a Arc<SceneCatalog>,
+    pool: &'a Arc<rayon::ThreadPool>,
+}
+
+impl Task<'_> {
+    /// Render a leased task to its end (or its loss); returns the job prepared for the next
+    /// task.
+    async fn run(
+        &self,
+        lease: Lease,
+        prepared: Option<Arc<Prepared>>,
+        listener: &mut sqlx::postgres::PgListener,
+        shutdown: &mut watch::Receiver<bool>,
+    ) -> Option<Arc<Prepared>> {
+        let job = match prepared.filter(|p| p.job_id == lease.job_id) {
+            Some(p) => p,
+            None => match self.prepare(lease.job_id).await {
+                Ok(p) => Arc::new(p),
+                Err(e) => {
+                    self.report_failure(&lease, &e).await;
+                    return None;
+                }
+            },
+        };
+        let cancel = Arc::new(AtomicBool::new(false));
+        let (job2, cancel2, pool, unit) =
+            (job.clone(), cancel.clone(), self.pool.clone(), lease.unit);
+        let mut render = tokio::task::spawn_blocking(move || {
+            pool.install(|| {
+                let key = job2.resolved.text.as_bytes();
+                render_unit(&job2.scene, &job2.spec.render, key, unit, &cancel2)
+            })
+        });
+        let mut beat = tokio::time::interval(self.cfg.lease / 3);
+        beat.tick().await;
+        let mut releasing = false;
+        let result = loop {
+            tokio::select! {
+                r = &mut render => break r,
+                _ = beat.tick() => match self.queue.heartbeat(&lease, self.cfg.lease).await {
+                    Ok(()) => { let _ = self.queue.worker_alive(&self.cfg.id).await; }
+                    Err(FarmError::Lost(why)) => {
+                        tracing::warn!(job = lease.job_id, seq = lease.seq, "{why}: stopping");
+                        cancel.store(true, Ordering::Relaxed);
+                    }
+                    Err(e) => tracing::warn!("heartbeat: {e}"),
+                },
+                n = listener.recv() => match n {
+                    Ok(n) if n.channel() == CANCEL_CHANNEL
+                        && n.payload() == lease.job_id.to_string() =>
+                    {
+                        cancel.store(true, Ordering::Relaxed);
+                    }
+                    Ok(_) => {}
+                    // The store is out of reach: the heartbeat says what that means for
+                    // the lease; listen again a little later.
+                    Err(_) => tokio::time::sleep(RETRY).await,
+                },
+                _ = shutdown.changed() => {
+                    releasing = true;
+                    cancel.store(true, Ordering::Relaxed);
+                }
+            }
+        };
+        match result {
+            Ok(Ok(bytes)) => self.hand_in(&lease, &job, &bytes).await,
+            Ok(Err(RenderError::Cancelled(_))) if releasing => {
+                if let Err(e) = self.queue.release(&lease).await {
+                    tracing::warn!("giving the task back: {e}");
+                }
+            }
+            Ok(Err(RenderError::Cancelled(_))) => {}
+            Ok(Err(e)) => self.report_failure(&lease, &e.to_string()).await,
+            Err(panic) => {
+                self.report_failure(&lease, &format!("the renderer panicked: {panic}"))
+                    .await
+            }
+        }
+        Some(job)
+    }
+
+    /// Read the job's spec and scene and build the scene (its BVH) on the worker's pool.
+    async fn prepare(&self, job_id: i64) -> Result<Prepared, String> {
+        let source = self
+            .queue
+            .job_source(job_id)
+            .await
+            .map_err(|e| format!("reading the job: {e}"))?;
+        let (catalog, pool) = (self.catalog.clone(), self.pool.clone());
+        tokio::task::spawn_blocking(move || prepare(job_id, &source, &catalog, &pool))
+            .await
+            .map_err(|e| e.to_string())?
+    }
+
+    async fn report_failure(&self, lease: &Lease, reason: &str) {
+        tracing::warn!(job = lease.job_id, seq = lease.seq, "task failed: {reason}");
+        if let Err(e) = self.queue.fail(lease, reason).await {
+            tracing::warn!("reporting the failure: {e}");
+        }
+    }
+
+    /// Hand the result in; the last task's worker merges the job. A store out of reach is
+    /// tried again (the lease may still hold, and if it has passed on, the fence refuses
+    /// the result and says so in the counters) until [`HAND_IN_PATIENCE`].
+    async fn hand_in(&self, lease: &Lease, job: &Prepared, bytes: &[u8]) {
+        let give_up = tokio::time::Instant::now() + HAND_IN_PATIENCE;
+        let completed = loop {
+            match self.queue.complete(lease, bytes).await {
+                Err(FarmError::Db(e)) if tokio::time::Instant::now() < give_up => {
+                    tracing::warn!(
+                        job = lease.job_id,
+                        "handing in a result (trying again): {e}"
+                    );
+                    tokio::time::sleep(RETRY).await;
+                }
+                other => break other,
+            }
+        };
+        match completed {
+            Ok(Completion::Accepted { job_done: true }) => {
+                if let Err(e) = self.finish(lease.job_id, job).await {
+                    tracing::error!(job = lease.job_id, "merging the job: {e}");
+                    let _ = self.queue.fail_job(lease.job_id, &e).await;
+                }
+            }
+            Ok(Completion::Accepted { job_done: false }) => {}
+            Ok(Completion::Refused(why)) => {
+                tracing::warn!(job = lease.job_id, seq = lease.seq, "result refused: {why}");
+            }
+            Err(e) => tracing::warn!(job = lease.job_id, "handing in a result: {e}"),
+        }
+    }
+
+    /// Merge the job's results in task order and store its images.
+    async fn finish(&self, job_id: i64, job: &Prepared) -> Result<(), String> {
+        let results = self
+            .queue
+            .results(job_id)
+            .await
+            .map_err(|e| e.to_string())?;
+        let units = results
+            .into_iter()
+            .map(|(unit, r)| r.map(|r| (unit, r)))
+            .collect::<Option<Vec<_>>>()
+            .ok_or("a task of a finished job has no result")?;
+        let (size, exposure, tasks) = (job.size, job.spec.exposure, units.len());
+        let images = tokio::task::spawn_blocking(move || -> Result<JobImages, String> {
+            let image = merge(size, &units)?;
+            Ok(JobImages {
+                exr: output::encode_exr(&image).map_err(|e| e.to_string())?,
+                png: output::encode_png(&image, exposure).map_err(|e| e.to_string())?,
+            })
+        })
+        .await
+        .map_err(|e| e.to_string())??;
+        let stats = serde_json::json!({ "farm": { "tasks": tasks } }).to_string();
+        self.queue
+            .finish_job(job_id, &images, &stats)
+            .await
+            .map_err(|e| e.to_string())?;
+        Ok(())
+    }
+}
+
+/// A job's spec and scene, the scene built.
+fn prepare(
+    job_id: i64,
+    source: &JobSource,
+    catalog: &SceneCatalog,
+    pool: &rayon::ThreadPool,
+) -> Result<Prepared, String> {
+    let spec = JobSpec::from_stored(&source.params_json)?;
+    let resolved = match (&source.scene_json, &source.scene_name) {
+        (Some(text), _) => {
+            let value = serde_json::from_str(text).map_err(|e| format!("the job's scene: {e}"))?;
+            resolve_uploaded(value).map_err(|e| e.to_string())?
+        }
+        (None, Some(name)) => catalog.resolve(name).map_err(|e| e.to_string())?,
+        (None, None) => return Err("the job has no scene".into()),
+    };
+    let scene = pool
+        .install(|| Scene::build_with(&resolved.desc, &Control::none()))
+        .map_err(|e| e.to_string())?;
+    let camera = &resolved.desc.camera;
+    let size = spec.render.resolution((camera.width, camera.height));
+    Ok(Prepared {
+        job_id,
+        scene: Arc::new(scene),
+        resolved,
+        spec,
+        size,
+    })
+}
