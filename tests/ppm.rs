@@ -255,19 +255,22 @@ fn passes_rendered_in_pieces_merge_to_the_bits_of_one_run() {
     );
 }
 
-/// The exact sum of passes `first ..= last` rendered as a piece (a farm's task).
+/// The exact sum of passes `first ..= last` rendered as a piece (a farm's task), from the
+/// initial radii if given; and the initial radii it rendered with.
 fn piece_sum(
     s: &Scene,
     spec: &RenderSpec,
     first: u32,
     last: u32,
-) -> photonbox::render::ppm::PassSum {
-    let mut sum = None;
+    radii: Option<[f64; 2]>,
+) -> (photonbox::render::ppm::PassSum, [f64; 2]) {
+    let mut out = None;
     let inputs = Inputs {
         scene_key: b"test",
         piece: Some(Piece {
             first,
             count: last - first + 1,
+            radii,
         }),
         ..Inputs::fresh()
     };
@@ -278,12 +281,12 @@ fn piece_sum(
             st.passes
         );
         if st.passes == last {
-            sum = Some(st.sum().clone());
+            out = Some((st.sum().clone(), st.radius_initial));
         }
         ControlFlow::Continue(())
     })
     .unwrap();
-    sum.expect("the piece ran to its last pass")
+    out.expect("the piece ran to its last pass")
 }
 
 #[test]
@@ -310,9 +313,11 @@ fn pieces_rendered_apart_merge_to_the_bits_of_one_run() {
         })
         .unwrap();
         // Rendered last piece first, as a farm might.
-        let mut merged = piece_sum(&s, &spec, 6, 7);
-        merged.merge(&piece_sum(&s, &spec, 3, 5));
-        merged.merge(&piece_sum(&s, &spec, 1, 2));
+        // The first piece computes the initial radii, the second is given them, the third
+        // (pass 1) sets them as any render does.
+        let (mut merged, radii) = piece_sum(&s, &spec, 6, 7, None);
+        merged.merge(&piece_sum(&s, &spec, 3, 5, Some(radii)).0);
+        merged.merge(&piece_sum(&s, &spec, 1, 2, None).0);
         assert!(
             Some(&merged) == whole.as_ref(),
             "{spec:?}: merged pieces differ from one run"
@@ -327,7 +332,11 @@ fn a_piece_outside_its_render_is_refused() {
     let spec = RenderSpec::ppm(ppm_params(1_000, 4));
     for (first, count) in [(0, 2), (4, 2), (2, 0)] {
         let inputs = Inputs {
-            piece: Some(Piece { first, count }),
+            piece: Some(Piece {
+                first,
+                count,
+                radii: None,
+            }),
             ..Inputs::fresh()
         };
         let got = run(&s, &spec, inputs, &Control::none(), &mut |_| {

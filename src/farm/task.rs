@@ -20,7 +20,7 @@ const TASK_WORK: f64 = 1e7;
 
 /// A job of at least this many passes is split into at least this many tasks, however
 /// small its passes: enough for a few workers to share.
-const MIN_TASKS: u32 = 8;
+const MIN_TASKS: u32 = 16;
 
 /// The tasks of a job whose render is `spec`, of total work `work`, each needing
 /// `memory_bytes`.
@@ -44,12 +44,14 @@ pub fn split(spec: &RenderSpec, work: f64, memory_bytes: u64) -> Vec<NewTask> {
 }
 
 /// A unit's result as stored: a piece's exact sum ([`PassSum::write_to`]), or a whole
-/// render's image (little-endian f32 RGB, row-major).
+/// render's image (little-endian f32 RGB, row-major). `radii`: the render's initial radii
+/// if an earlier piece found them; a piece sets them when it does.
 pub fn render_unit(
     scene: &Scene,
     spec: &RenderSpec,
     scene_key: &[u8],
     unit: Unit,
+    radii: &std::sync::Mutex<Option<[f64; 2]>>,
     cancel: &AtomicBool,
 ) -> Result<Vec<u8>, crate::render::RenderError> {
     let control = Control {
@@ -59,7 +61,12 @@ pub fn render_unit(
     let mut bytes = Vec::new();
     match unit {
         Unit::Passes { first, count } => {
-            let piece = Piece { first, count };
+            let known = *radii.lock().unwrap_or_else(|e| e.into_inner());
+            let piece = Piece {
+                first,
+                count,
+                radii: known,
+            };
             let inputs = Inputs {
                 scene_key,
                 piece: Some(piece),
@@ -69,6 +76,7 @@ pub fn render_unit(
             run(scene, spec, inputs, &control, &mut |st| {
                 if st.passes == piece.last() {
                     sum = Some(st.sum().clone());
+                    *radii.lock().unwrap_or_else(|e| e.into_inner()) = Some(st.radius_initial);
                 }
                 ControlFlow::Continue(())
             })?;
@@ -174,7 +182,7 @@ mod tests {
 
     #[test]
     fn small_passes_still_spread_and_large_ones_go_one_by_one() {
-        assert_eq!(split(&ppm(48), 48e4, 0).len(), 8);
+        assert_eq!(split(&ppm(48), 48e4, 0).len(), 16);
         assert_eq!(split(&ppm(48), 48e9, 0).len(), 48);
     }
 

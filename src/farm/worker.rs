@@ -52,6 +52,8 @@ struct Prepared {
     resolved: ResolvedScene,
     spec: JobSpec,
     size: (u32, u32),
+    /// The render's initial radii, once a piece has found them (see `render::Piece`).
+    radii: std::sync::Mutex<Option<[f64; 2]>>,
 }
 
 /// Run a worker until `shutdown` turns true.
@@ -138,7 +140,14 @@ impl Task<'_> {
         let mut render = tokio::task::spawn_blocking(move || {
             pool.install(|| {
                 let key = job2.resolved.text.as_bytes();
-                render_unit(&job2.scene, &job2.spec.render, key, unit, &cancel2)
+                render_unit(
+                    &job2.scene,
+                    &job2.spec.render,
+                    key,
+                    unit,
+                    &job2.radii,
+                    &cancel2,
+                )
             })
         });
         let mut beat = tokio::time::interval(self.cfg.lease / 3);
@@ -299,5 +308,6 @@ fn prepare(
         resolved,
         spec,
         size,
+        radii: std::sync::Mutex::new(None),
     })
 }

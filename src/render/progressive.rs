@@ -82,10 +82,15 @@ pub(crate) struct ProgressiveRun<'a> {
 /// zero sum, so the sum at the end holds these passes only and merges exactly with the
 /// other pieces' ([`crate::render::ppm::PassSum::merge`]). Radii are replayed by the same
 /// f64 schedule, so each pass reads with the bits it would read with in one run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+///
+/// `radii`: the render's initial radii (global, caustic), when the caller knows them from
+/// an earlier piece of the same render (`PpmState::radius_initial`): a piece past pass 1
+/// then does not compute them again (for ppm, a photon trace of pass 1).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Piece {
     pub first: u32,
     pub count: u32,
+    pub radii: Option<[f64; 2]>,
 }
 
 impl Piece {
@@ -224,7 +229,15 @@ fn piece_state(
         pass: 1,
         seed: pass_seed(run.seed, 1),
     };
-    integrator.initial_radii(&mut state, first, control)?;
+    match piece.radii {
+        // As the integrators set them: the squared radii are the radii squared.
+        Some(r) => {
+            state.radius_initial = r;
+            state.r2_global = r[0].powi(2);
+            state.r2_caustic = r[1].powi(2);
+        }
+        None => integrator.initial_radii(&mut state, first, control)?,
+    }
     if let Some((alpha, _)) = run.radius {
         for pass in 1..piece.first {
             state.r2_global = next_r2(state.r2_global, pass, alpha);

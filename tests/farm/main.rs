@@ -2,5 +2,6 @@
 //! limit, cancellation and fair share.
 
 mod e2e;
+mod harness;
 mod pg;
 mod queue;
