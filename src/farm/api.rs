@@ -38,8 +38,9 @@ type ApiRef = Arc<FarmApi>;
 pub fn router(api: ApiRef) -> Router {
     let body_limit = api.limits.body_bytes;
     Router::new()
-        .route("/api/jobs", axum::routing::post(submit))
+        .route("/api/jobs", get(list).post(submit))
         .route("/api/jobs/{id}", get(job).delete(cancel))
+        .route("/api/jobs/{id}/events", get(super::events::job_events))
         .route("/api/jobs/{id}/{file}", get(image))
         .route("/api/workers", get(workers))
         .route("/api/me", get(me))
@@ -59,7 +60,7 @@ fn store_error(e: FarmError) -> ApiError {
 }
 
 /// The user of the request's bearer token.
-async fn user(api: &FarmApi, headers: &HeaderMap) -> Result<User, ApiError> {
+pub(super) async fn user(api: &FarmApi, headers: &HeaderMap) -> Result<User, ApiError> {
     let token = bearer(headers)?;
     api.queue
         .user_by_token_hash(&token_hash(token))
@@ -69,14 +70,18 @@ async fn user(api: &FarmApi, headers: &HeaderMap) -> Result<User, ApiError> {
 }
 
 /// A job the user may see (others' private jobs do not exist for them: 404).
-async fn visible_job(api: &FarmApi, user: &User, id: i64) -> Result<(JobRow, f64), ApiError> {
+pub(super) async fn visible_job(
+    api: &FarmApi,
+    user: &User,
+    id: i64,
+) -> Result<(JobRow, f64), ApiError> {
     match api.queue.job(id).await.map_err(store_error)? {
         Some((row, p)) if user.admin || row.user_id == user.id || row.public => Ok((row, p)),
         _ => Err(ApiError::not_found("job")),
     }
 }
 
-fn job_id(raw: &str) -> Result<i64, ApiError> {
+pub(super) fn job_id(raw: &str) -> Result<i64, ApiError> {
     raw.parse()
         .map_err(|_| ApiError::invalid("id", format!("{raw:?} is not a job id")))
 }
@@ -131,11 +136,31 @@ async fn job(
 ) -> Result<Json<Value>, ApiError> {
     let user = user(&api, &headers).await?;
     let (row, progress) = visible_job(&api, &user, job_id(&id)?).await?;
+    Ok(Json(job_json(&row, progress, &user)))
+}
+
+/// The jobs the user may see, newest first (at most [`LIST_MAX`]).
+async fn list(State(api): State<ApiRef>, headers: HeaderMap) -> Result<Json<Value>, ApiError> {
+    let user = user(&api, &headers).await?;
+    let rows = api
+        .queue
+        .visible_jobs(user.id, user.admin, LIST_MAX)
+        .await
+        .map_err(store_error)?;
+    let jobs: Vec<Value> = rows.iter().map(|(r, p)| job_json(r, *p, &user)).collect();
+    Ok(Json(json!({ "jobs": jobs })))
+}
+
+/// The most jobs one listing shows.
+const LIST_MAX: i64 = 500;
+
+/// A job as `GET /api/jobs/{id}` shows it (the one-box server's fields that the farm has).
+fn job_json(row: &JobRow, progress: f64, user: &User) -> Value {
     let raw = |t: &Option<String>| {
         t.as_deref()
             .and_then(|t| serde_json::from_str::<Value>(t).ok())
     };
-    Ok(Json(json!({
+    json!({
         "id": row.id,
         "mine": row.user_id == user.id,
         "public": row.public,
@@ -148,7 +173,7 @@ async fn job(
         "finished": row.finished,
         "error": row.error,
         "stats": raw(&row.stats_json),
-    })))
+    })
 }
 
 async fn cancel(

@@ -156,6 +156,27 @@ impl Queue {
         Ok(row.as_ref().map(job_row).transpose()?)
     }
 
+    /// The jobs `user` may see (its own and public ones; an admin every one), newest first,
+    /// at most `limit`.
+    pub async fn visible_jobs(
+        &self,
+        user: i64,
+        admin: bool,
+        limit: i64,
+    ) -> Result<Vec<(JobRow, f64)>, FarmError> {
+        let sql = format!(
+            "SELECT {JOB_COLUMNS} FROM jobs WHERE $2 OR user_id = $1 OR public
+              ORDER BY created DESC, id DESC LIMIT $3"
+        );
+        let rows = sqlx::query(sqlx::AssertSqlSafe(sql))
+            .bind(user)
+            .bind(admin)
+            .bind(limit)
+            .fetch_all(self.pool())
+            .await?;
+        Ok(rows.iter().map(job_row).collect::<Result<_, _>>()?)
+    }
+
     /// What a worker reads to render job `id`'s tasks.
     pub async fn job_source(&self, id: i64) -> Result<JobSource, FarmError> {
         let r = sqlx::query("SELECT params_json, scene_name, scene_json FROM jobs WHERE id = $1")

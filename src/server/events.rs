@@ -82,8 +82,8 @@ fn event(name: &str, snap: &Snapshot) -> Event {
         .data(serde_json::to_string(snap).unwrap_or_default())
 }
 
-/// The events that take a client from `last` to `now`.
-fn diff_events(last: Option<&Snapshot>, now: &Snapshot) -> Vec<Event> {
+/// The events that take a client from `last` to `now` (the farm's stream too).
+pub(crate) fn diff_events(last: Option<&Snapshot>, now: &Snapshot) -> Vec<Event> {
     let mut out = Vec::new();
     if last.is_none_or(|l| l.status != now.status) {
         out.push(event("status", now));

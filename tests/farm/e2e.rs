@@ -202,3 +202,70 @@ fn a_small_job_behind_another_user_s_long_one_starts_at_once(kind: Kind) {
     );
 }
 both!(a_small_job_behind_another_user_s_long_one_starts_at_once);
+
+fn events_follow_a_job_to_its_end(kind: Kind) {
+    let d = Deployment::start(kind, 2);
+    let (api, admin) = (&d.api, &d.admin);
+    let id = api.submit(admin, ppm_params());
+    let resp = client()
+        .get(format!("{}/api/jobs/{id}/events", api.base))
+        .bearer_auth(admin)
+        .send()
+        .unwrap();
+    assert_eq!(resp.status().as_u16(), 200);
+    // The stream ends after its final event: read it to the end.
+    let text = resp.text().unwrap();
+    let names: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("event: "))
+        .collect();
+    assert_eq!(names.first(), Some(&"status"), "{text}");
+    assert!(names.contains(&"progress"), "{text}");
+    assert_eq!(names.last(), Some(&"done"), "{text}");
+    let progress: Vec<f64> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("data: "))
+        .map(|d| {
+            serde_json::from_str::<serde_json::Value>(d).unwrap()["progress"]
+                .as_f64()
+                .unwrap()
+        })
+        .collect();
+    assert!(
+        progress.windows(2).all(|w| w[0] <= w[1]),
+        "progress went back: {progress:?}"
+    );
+    assert_eq!(progress.last(), Some(&1.0));
+}
+both!(events_follow_a_job_to_its_end);
+
+fn a_private_job_is_seen_by_its_owner_and_the_admin_only(kind: Kind) {
+    let d = Deployment::start(kind, 0);
+    let (api, admin) = (&d.api, &d.admin);
+    let (bob, carol) = (d.add_user("bob"), d.add_user("carol"));
+    let id = api.submit(
+        &bob,
+        json!({"integrator": "raytrace", "spp": 1, "width": 8, "height": 8}),
+    );
+    let listed = |token: &str| -> bool {
+        let (status, body) = api.get(token, "/api/jobs");
+        assert_eq!(status, 200);
+        let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        v["jobs"].as_array().unwrap().iter().any(|j| j["id"] == id)
+    };
+    assert!(listed(&bob) && listed(admin));
+    assert!(!listed(&carol), "another user's private job is listed");
+    assert_eq!(api.get(&carol, &format!("/api/jobs/{id}")).0, 404);
+    let cancel = |token: &str| {
+        client()
+            .delete(format!("{}/api/jobs/{id}", api.base))
+            .bearer_auth(token)
+            .send()
+            .unwrap()
+            .status()
+            .as_u16()
+    };
+    assert_eq!(cancel(&carol), 404);
+    assert_eq!(api.get("not-a-token", "/api/jobs").0, 401);
+}
+both!(a_private_job_is_seen_by_its_owner_and_the_admin_only);
