@@ -47,6 +47,31 @@ pub enum FarmError {
     Lost(#[from] LeaseLost),
 }
 
+impl FarmError {
+    /// Whether the store was out of reach (down, restarting, the connection lost), as
+    /// opposed to refusing the request: worth trying again.
+    pub fn is_transient(&self) -> bool {
+        let db = match self {
+            FarmError::Db(e) => e,
+            FarmError::Migrate(sqlx::migrate::MigrateError::Execute(e)) => e,
+            _ => return false,
+        };
+        match db {
+            sqlx::Error::Io(_)
+            | sqlx::Error::PoolTimedOut
+            | sqlx::Error::PoolClosed
+            | sqlx::Error::Protocol(_)
+            | sqlx::Error::WorkerCrashed => true,
+            // Class 08: connection exception; class 57: operator intervention (the
+            // server shutting down, starting up, or ending our session).
+            sqlx::Error::Database(e) => e
+                .code()
+                .is_some_and(|c| c.starts_with("08") || c.starts_with("57")),
+            _ => false,
+        }
+    }
+}
+
 /// This process's queue counters (its /metrics).
 #[derive(Debug, Default)]
 pub struct QueueMetrics {

@@ -61,12 +61,9 @@ pub async fn run_worker(
     cfg: WorkerConfig,
     mut shutdown: watch::Receiver<bool>,
 ) -> anyhow::Result<()> {
-    let queue = Queue::connect(&cfg.store, 4)
-        .await
-        .context("connecting to the store")?;
-    queue
-        .register_worker(&cfg.id, cfg.threads as u32, cfg.memory_bytes)
-        .await?;
+    let Some((queue, mut listener)) = join_the_farm(&cfg, &mut shutdown).await? else {
+        return Ok(());
+    };
     let scenes = cfg.scenes.clone();
     let catalog = Arc::new(tokio::task::spawn_blocking(move || SceneCatalog::load(scenes)).await?);
     let pool = Arc::new(
@@ -75,7 +72,6 @@ pub async fn run_worker(
             .thread_name(|i| format!("worker-render-{i}"))
             .build()?,
     );
-    let mut listener = queue.listener().await?;
     let mut prepared: Option<Arc<Prepared>> = None;
     tracing::info!(worker = cfg.id, "worker started");
     while !*shutdown.borrow() {
@@ -105,6 +101,37 @@ pub async fn run_worker(
     let _ = queue.deregister_worker(&cfg.id).await;
     tracing::info!(worker = cfg.id, "worker stopped");
     Ok(())
+}
+
+/// Connect to the store, register and listen; a store out of reach (not started yet, or
+/// restarting) is waited for, a store that refuses us (a bad URL, an unknown role) is an
+/// error. None: shut down while waiting.
+async fn join_the_farm(
+    cfg: &WorkerConfig,
+    shutdown: &mut watch::Receiver<bool>,
+) -> anyhow::Result<Option<(Queue, sqlx::postgres::PgListener)>> {
+    loop {
+        let joined = async {
+            let queue = Queue::connect(&cfg.store, 4).await?;
+            queue
+                .register_worker(&cfg.id, cfg.threads as u32, cfg.memory_bytes)
+                .await?;
+            let listener = queue.listener().await?;
+            Ok::<_, FarmError>((queue, listener))
+        }
+        .await;
+        match joined {
+            Ok(joined) => return Ok(Some(joined)),
+            Err(e) if e.is_transient() => {
+                tracing::warn!("the store is out of reach (trying again): {e}");
+            }
+            Err(e) => return Err(e).context("joining the farm's store"),
+        }
+        tokio::select! {
+            _ = tokio::time::sleep(POLL) => {}
+            _ = shutdown.changed() => return Ok(None),
+        }
+    }
 }
 
 struct Task<'a> {

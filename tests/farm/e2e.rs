@@ -10,6 +10,7 @@ use serde_json::json;
 
 use crate::both;
 use crate::harness::*;
+use crate::pg::Cluster;
 
 fn a_job_spread_over_three_workers_is_the_bytes_of_one_box(kind: Kind) {
     let d = Deployment::start(kind, 3);
@@ -269,3 +270,18 @@ fn a_private_job_is_seen_by_its_owner_and_the_admin_only(kind: Kind) {
     assert_eq!(api.get("not-a-token", "/api/jobs").0, 401);
 }
 both!(a_private_job_is_seen_by_its_owner_and_the_admin_only);
+
+#[test]
+fn a_worker_started_before_its_store_waits_for_it() {
+    let own = Cluster::new(false);
+    let store = fresh_store_of(&own);
+    own.stop();
+    // The store is down: the worker waits for it rather than exiting.
+    let mut worker = start_worker(&store, "early", 10.0);
+    own.start();
+    let (api, admin) = start_api(&store);
+    let admin = admin.unwrap();
+    let id = api.submit(&admin, ppm_params());
+    assert!(api.wait_done(&admin, id) == one_box_exr());
+    assert!(worker.0.try_wait().unwrap().is_none(), "the worker exited");
+}
