@@ -39,21 +39,7 @@ fn a_worker_killed_mid_task_loses_it_to_another_and_the_bytes_hold() {
     // As soon as the victim holds a task, SIGKILL it.
     let url = store.clone();
     store_query(&url, async move |pool| {
-        let t0 = Instant::now();
-        while sqlx::query_scalar::<_, i64>(
-            "SELECT count(*) FROM tasks WHERE worker = 'victim' AND state = 'leased'",
-        )
-        .fetch_one(pool)
-        .await
-        .unwrap()
-            == 0
-        {
-            assert!(
-                t0.elapsed() < Duration::from_secs(60),
-                "the victim never claimed"
-            );
-            tokio::time::sleep(Duration::from_millis(5)).await;
-        }
+        await_lease(pool, "victim").await;
     });
     victim.signal(libc::SIGKILL);
     drop(victim);
@@ -81,21 +67,7 @@ fn a_worker_cut_off_from_the_store_has_its_stale_result_refused() {
     let _cut = start_worker(&cut_url, "cut", 1.0);
     let id = api.submit(&admin, ppm_params());
     store_query(&store, async move |pool| {
-        let t0 = Instant::now();
-        while sqlx::query_scalar::<_, i64>(
-            "SELECT count(*) FROM tasks WHERE worker = 'cut' AND state = 'leased'",
-        )
-        .fetch_one(pool)
-        .await
-        .unwrap()
-            == 0
-        {
-            assert!(
-                t0.elapsed() < Duration::from_secs(60),
-                "the worker never claimed"
-            );
-            tokio::time::sleep(Duration::from_millis(5)).await;
-        }
+        await_lease(pool, "cut").await;
         // Cut it off: no new logins, its connections terminated.
         sqlx::raw_sql(
             "ALTER ROLE cut NOLOGIN;

@@ -19,8 +19,14 @@ pub fn ppm_params() -> Value {
            "width": 40, "height": 30, "seed": 11})
 }
 
-/// The same job by `photonbox render` on one box: its EXR's bytes.
+/// The same job by `photonbox render` on one box: its EXR's bytes (rendered once per test
+/// run).
 pub fn one_box_exr() -> Vec<u8> {
+    static EXR: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    EXR.get_or_init(render_one_box_exr).clone()
+}
+
+fn render_one_box_exr() -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("one.exr");
     let out = Command::new(BIN)
@@ -379,4 +385,25 @@ macro_rules! both {
             }
         }
     };
+}
+
+/// Wait (at most a minute) until worker `worker` holds a leased task.
+pub async fn await_lease(pool: &sqlx::PgPool, worker: &str) {
+    let t0 = Instant::now();
+    loop {
+        let held: i64 =
+            sqlx::query_scalar("SELECT count(*) FROM tasks WHERE worker = $1 AND state = 'leased'")
+                .bind(worker)
+                .fetch_one(pool)
+                .await
+                .unwrap();
+        if held > 0 {
+            return;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "{worker} never claimed a task"
+        );
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
 }
