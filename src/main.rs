@@ -67,6 +67,10 @@ struct WorkerArgs {
     /// three times as often); a worker that stops for longer loses its task to another.
     #[arg(long, default_value_t = 30.0)]
     lease_seconds: f64,
+    /// Answer GET /healthz (the store answers, once joined) and /metrics (this worker's
+    /// counters) on this address.
+    #[arg(long)]
+    addr: Option<String>,
 }
 
 #[derive(Args)]
@@ -318,12 +322,15 @@ fn run_worker(a: WorkerArgs) -> anyhow::Result<()> {
     let threads = a
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()));
-    photonbox::farm::run::work(photonbox::farm::WorkerConfig {
-        store: a.store,
-        id: a.id.unwrap_or_else(default_worker_id),
-        threads,
-        memory_bytes: mib(a.memory_mb, "--memory-mb")?,
-        scenes: a.scenes.unwrap_or_else(photonbox::server::default_scenes),
-        lease: seconds(a.lease_seconds, "--lease-seconds")?,
-    })
+    photonbox::farm::run::work(
+        photonbox::farm::WorkerConfig {
+            store: a.store,
+            id: a.id.unwrap_or_else(default_worker_id),
+            threads,
+            memory_bytes: mib(a.memory_mb, "--memory-mb")?,
+            scenes: a.scenes.unwrap_or_else(photonbox::server::default_scenes),
+            lease: seconds(a.lease_seconds, "--lease-seconds")?,
+        },
+        a.addr,
+    )
 }

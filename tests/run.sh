@@ -6,6 +6,8 @@
 # Debian's Firefox ESR through geckodriver. Debian has no geckodriver package (bookworm): it
 # comes from crates.io then, into ~/.cargo/bin (a few minutes' build, once per machine).
 # The farm's tests (tests/farm/) start Debian's PostgreSQL server in a temporary directory.
+# The container tests (tests/container.rs) build the Dockerfile's image and bring up
+# examples/compose.yaml on the Docker engine, from base images made by tests/docker/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="${CARGO_HOME:-$HOME/.cargo}/bin:$PATH"
@@ -17,6 +19,10 @@ command -v chromium >/dev/null || packages+=(chromium)
 command -v chromedriver >/dev/null || packages+=(chromium-driver)
 command -v firefox-esr >/dev/null || command -v firefox >/dev/null || packages+=(firefox-esr)
 compgen -G "/usr/lib/postgresql/*/bin/postgres" >/dev/null || packages+=(postgresql)
+command -v docker >/dev/null || packages+=(docker.io)
+command -v docker-compose >/dev/null || docker compose version >/dev/null 2>&1 ||
+  packages+=(docker-compose)
+command -v debootstrap >/dev/null || packages+=(debootstrap)
 if [ ${#packages[@]} -gt 0 ] || ! command -v geckodriver >/dev/null; then
   echo "tests/run.sh: installing what the tests need: ${packages[*]:-} geckodriver" >&2
   apt_get update -q
@@ -25,6 +31,14 @@ if [ ${#packages[@]} -gt 0 ] || ! command -v geckodriver >/dev/null; then
   fi
   if [ ${#packages[@]} -gt 0 ]; then apt_get install -y -q "${packages[@]}"; fi
   if ! command -v geckodriver >/dev/null; then cargo install geckodriver --locked; fi
+fi
+# The container tests (tests/container.rs) need a running Docker engine.
+if ! docker info >/dev/null 2>&1; then
+  echo "tests/run.sh: starting the Docker engine" >&2
+  $sudo sh -c 'command -v service >/dev/null && service docker start' >&2 ||
+    { $sudo sh -c 'nohup dockerd >/var/log/photonbox-dockerd.log 2>&1 &'; }
+  for _ in $(seq 60); do docker info >/dev/null 2>&1 && break; sleep 1; done
+  docker info >/dev/null
 fi
 # The API tests run schemathesis (PyPI) against a live server: into a virtual environment of
 # its own, once per machine (pinned: its checks are what the test asserts).

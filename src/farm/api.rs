@@ -242,55 +242,10 @@ async fn me(State(api): State<ApiRef>, headers: HeaderMap) -> Result<Json<Value>
     ))
 }
 
-/// Healthy when the store answers.
 async fn healthz(State(api): State<ApiRef>) -> Response {
-    match sqlx::query("SELECT 1").execute(api.queue.pool()).await {
-        Ok(_) => "ok\n".into_response(),
-        Err(e) => (StatusCode::SERVICE_UNAVAILABLE, format!("store: {e}\n")).into_response(),
-    }
+    super::probe::health(&api.queue).await
 }
 
-/// This process's queue counters and the queue's depth by user (Prometheus text).
-async fn metrics(State(api): State<ApiRef>) -> Result<Response, ApiError> {
-    let m = api.queue.metrics();
-    let mut out = String::new();
-    let mut counter = |name: &str, help: &str, v: u64| {
-        out += &format!("# HELP {name} {help}\n# TYPE {name} counter\n{name} {v}\n");
-    };
-    counter(
-        "photonbox_farm_tasks_claimed_total",
-        "Tasks this process claimed.",
-        m.claimed(),
-    );
-    counter(
-        "photonbox_farm_leases_expired_total",
-        "Expired leases this process reaped.",
-        m.leases_expired(),
-    );
-    counter(
-        "photonbox_farm_fenced_results_refused_total",
-        "Results this process handed in that a newer attempt had fenced off.",
-        m.fenced_refused(),
-    );
-    let (expired, fenced) = api.queue.farm_counters().await.map_err(store_error)?;
-    let mut farm = |name: &str, help: &str, v: i64| {
-        out += &format!("# HELP {name} {help}\n# TYPE {name} counter\n{name} {v}\n");
-    };
-    farm(
-        "photonbox_farm_store_leases_expired_total",
-        "Expired leases reaped, by every process of the farm.",
-        expired,
-    );
-    farm(
-        "photonbox_farm_store_fenced_results_refused_total",
-        "Stale results refused, from every worker of the farm.",
-        fenced,
-    );
-    let depth = api.queue.depth_by_user().await.map_err(store_error)?;
-    out += "# HELP photonbox_farm_queued_tasks Queued tasks by user id.\n";
-    out += "# TYPE photonbox_farm_queued_tasks gauge\n";
-    for (user, n) in depth {
-        out += &format!("photonbox_farm_queued_tasks{{user=\"{user}\"}} {n}\n");
-    }
-    Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], out).into_response())
+async fn metrics(State(api): State<ApiRef>) -> Response {
+    super::probe::metrics(&api.queue).await
 }

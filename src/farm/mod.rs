@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub mod api;
 mod events;
 mod jobs;
+pub mod probe;
 pub mod queue;
 mod records;
 pub mod run;

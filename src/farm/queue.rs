@@ -220,15 +220,21 @@ impl Queue {
     /// transaction, and only if the lease is still this attempt's.
     pub async fn complete(&self, l: &Lease, result: &[u8]) -> Result<Completion, FarmError> {
         let mut tx = self.pool.begin().await?;
-        let stored = for_lease(
-            "UPDATE tasks SET state = 'done', result = $4, lease_until = NULL
-              WHERE job_id = $1 AND seq = $2 AND attempt = $3 AND state = 'leased'",
+        // The task's result and its worker's count, in one statement.
+        let stored: i64 = for_lease(
+            "WITH t AS (UPDATE tasks SET state = 'done', result = $4, lease_until = NULL
+                         WHERE job_id = $1 AND seq = $2 AND attempt = $3 AND state = 'leased'
+                        RETURNING worker),
+                  w AS (UPDATE workers SET tasks_done = tasks_done + 1
+                         WHERE id IN (SELECT worker FROM t))
+             SELECT count(*) FROM t",
             l,
         )
         .bind(result)
-        .execute(&mut *tx)
-        .await?;
-        if stored.rows_affected() != 1 {
+        .fetch_one(&mut *tx)
+        .await?
+        .try_get(0)?;
+        if stored != 1 {
             drop(tx);
             self.metrics.count_fenced();
             self.count_in_store("fenced_refused", 1).await?;
@@ -320,17 +326,6 @@ impl Queue {
             .execute(&self.pool)
             .await?;
         Ok(())
-    }
-
-    /// The farm-wide counters: (expired leases, fenced results refused).
-    pub async fn farm_counters(&self) -> Result<(i64, i64), FarmError> {
-        let get = |name: &'static str| {
-            sqlx::query_scalar::<_, i64>("SELECT n FROM counters WHERE name = $1").bind(name)
-        };
-        Ok((
-            get("leases_expired").fetch_one(&self.pool).await?,
-            get("fenced_refused").fetch_one(&self.pool).await?,
-        ))
     }
 
     fn failed_reason(&self, seq: i32, reason: &str) -> String {

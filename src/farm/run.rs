@@ -78,7 +78,7 @@ pub fn serve(cfg: FarmServeConfig) -> anyhow::Result<()> {
         let worker = cfg
             .worker
             .clone()
-            .map(|w| tokio::spawn(run_worker(w, stop.clone())));
+            .map(|w| tokio::spawn(run_worker(w, stop.clone(), watch::channel(None).0)));
         let mut stop2 = stop.clone();
         crate::server::listen::serve(listener, router(api), cfg.conn.clone(), async move {
             let _ = stop2.wait_for(|s| *s).await;
@@ -92,12 +92,40 @@ pub fn serve(cfg: FarmServeConfig) -> anyhow::Result<()> {
     })
 }
 
-/// Run a worker until SIGINT or SIGTERM (its task given back).
-pub fn work(cfg: WorkerConfig) -> anyhow::Result<()> {
+/// Run a worker until SIGINT or SIGTERM (its task given back); with `addr`, it also
+/// answers `/healthz` and `/metrics` there.
+pub fn work(cfg: WorkerConfig, addr: Option<String>) -> anyhow::Result<()> {
     runtime()?.block_on(async {
+        let stop = on_signal();
+        let (joined, joined_rx) = watch::channel(None);
+        let probes = match addr {
+            Some(addr) => {
+                let listener = tokio::net::TcpListener::bind(&addr)
+                    .await
+                    .with_context(|| format!("listening on {addr}"))?;
+                println!(
+                    "photonbox: worker probes on http://{}",
+                    listener.local_addr()?
+                );
+                let mut stop = stop.clone();
+                let app = super::probe::worker_router(joined_rx);
+                Some(tokio::spawn(async move {
+                    axum::serve(listener, app)
+                        .with_graceful_shutdown(async move {
+                            let _ = stop.wait_for(|s| *s).await;
+                        })
+                        .await
+                }))
+            }
+            None => None,
+        };
         println!("photonbox: worker {} on the farm store", cfg.id);
         let _ = std::io::stdout().flush();
-        run_worker(cfg, on_signal()).await
+        let worked = run_worker(cfg, stop, joined).await;
+        if let Some(p) = probes {
+            p.await??;
+        }
+        worked
     })
 }
 

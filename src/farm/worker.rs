@@ -56,14 +56,17 @@ struct Prepared {
     radii: std::sync::Mutex<Option<[f64; 2]>>,
 }
 
-/// Run a worker until `shutdown` turns true.
+/// Run a worker until `shutdown` turns true; `joined` is given its queue once it has
+/// joined the farm (its probes answer from then on).
 pub async fn run_worker(
     cfg: WorkerConfig,
     mut shutdown: watch::Receiver<bool>,
+    joined: watch::Sender<Option<Queue>>,
 ) -> anyhow::Result<()> {
     let Some((queue, mut listener)) = join_the_farm(&cfg, &mut shutdown).await? else {
         return Ok(());
     };
+    joined.send_replace(Some(queue.clone()));
     let scenes = cfg.scenes.clone();
     let catalog = Arc::new(tokio::task::spawn_blocking(move || SceneCatalog::load(scenes)).await?);
     let pool = Arc::new(

@@ -14,6 +14,8 @@ pub struct WorkerRow {
     pub memory_bytes: i64,
     /// Seconds since its last heartbeat, by the database's clock.
     pub seconds_since_heartbeat: f64,
+    /// Tasks it completed (results accepted).
+    pub tasks_done: i64,
 }
 
 impl Queue {
@@ -58,7 +60,7 @@ impl Queue {
     /// Every registered worker, by id.
     pub async fn workers(&self) -> Result<Vec<WorkerRow>, FarmError> {
         let rows = sqlx::query(
-            "SELECT id, threads, memory_bytes,
+            "SELECT id, threads, memory_bytes, tasks_done,
                     EXTRACT(EPOCH FROM now() - last_heartbeat)::float8 AS since
                FROM workers ORDER BY id",
         )
@@ -71,6 +73,7 @@ impl Queue {
                     threads: r.try_get("threads")?,
                     memory_bytes: r.try_get("memory_bytes")?,
                     seconds_since_heartbeat: r.try_get("since")?,
+                    tasks_done: r.try_get("tasks_done")?,
                 })
             })
             .collect()

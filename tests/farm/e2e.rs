@@ -21,6 +21,14 @@ fn a_job_spread_over_three_workers_is_the_bytes_of_one_box(kind: Kind) {
         let job = api.job(admin, id);
         assert_eq!(job["stats"]["farm"]["tasks"], 16, "{job}");
         assert!(workers_of(d.store(), id) >= 2, "the tasks were not spread");
+        // GET /api/workers counts each worker's accepted results.
+        let (status, body) = api.get(admin, "/api/workers");
+        assert_eq!(status, 200);
+        let workers: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        let done = workers["workers"].as_array().unwrap().iter();
+        let done: Vec<i64> = done.map(|w| w["tasks_done"].as_i64().unwrap()).collect();
+        assert_eq!(done.iter().sum::<i64>(), 16, "{workers}");
+        assert!(done.iter().filter(|&&n| n > 0).count() >= 2, "{workers}");
     }
     assert!(
         served == one_box_exr(),
@@ -248,12 +256,26 @@ fn a_worker_started_before_its_store_waits_for_it() {
     let own = Cluster::new(false);
     let store = fresh_store_of(&own);
     own.stop();
-    // The store is down: the worker waits for it rather than exiting.
-    let mut worker = start_worker(&store, "early", 10.0);
+    // The store is down: the worker waits for it rather than exiting, and says so on its
+    // health probe.
+    let (mut worker, probes) = start_worker_with_probes(&store, "early");
+    let probe = |path: &str| {
+        let r = client().get(format!("{probes}{path}")).send().unwrap();
+        (r.status().as_u16(), r.text().unwrap())
+    };
+    assert_eq!(probe("/healthz"), (503, "joining the farm\n".to_string()));
     own.start();
     let (api, admin) = start_api(&store);
     let admin = admin.unwrap();
     let id = api.submit(&admin, ppm_params());
     assert!(api.wait_done(&admin, id) == one_box_exr());
     assert!(worker.0.try_wait().unwrap().is_none(), "the worker exited");
+    // Joined: healthy, and its own /metrics count the 16 tasks it claimed.
+    assert_eq!(probe("/healthz"), (200, "ok\n".to_string()));
+    let (status, metrics) = probe("/metrics");
+    assert_eq!(status, 200);
+    assert!(
+        metrics.contains("\nphotonbox_farm_tasks_claimed_total 16\n"),
+        "{metrics}"
+    );
 }

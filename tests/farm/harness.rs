@@ -137,6 +137,25 @@ pub fn start_worker(store: &str, id: &str, lease_seconds: f64) -> Proc {
     Proc(child)
 }
 
+/// `start_worker` answering its probes on a free port: the worker and the probes' base URL.
+pub fn start_worker_with_probes(store: &str, id: &str) -> (Proc, String) {
+    let mut child = Command::new(BIN)
+        .args(["worker", "--threads", "1", "--store", store, "--id", id])
+        .args(["--addr", "127.0.0.1:0"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let base = loop {
+        let line = lines.next().expect("the worker's output").unwrap();
+        if let Some(rest) = line.strip_prefix("photonbox: worker probes on ") {
+            break rest.to_string();
+        }
+    };
+    std::thread::spawn(move || for _ in lines {});
+    (Proc(child), base)
+}
+
 pub fn client() -> Client {
     Client::builder()
         .timeout(Duration::from_secs(60))
