@@ -45,19 +45,13 @@ fn docker(args: &[&str]) -> String {
     run(Command::new("docker").args(args))
 }
 
-/// The Dockerfile's image, built once per test run.
+/// The Dockerfile's image as tests/docker/build-image.sh builds it (`IMAGE`, with
+/// `BUILD_ARGS`), once per test run.
 fn image() -> &'static str {
     static BUILT: OnceLock<()> = OnceLock::new();
     BUILT.get_or_init(|| {
-        run(&mut Command::new(format!(
-            "{ROOT}/tests/docker/base-images.sh"
-        )));
-        let mut build = Command::new("docker");
-        build.args(["build", "-q", "-t", IMAGE]);
-        for (k, v) in BUILD_ARGS {
-            build.args(["--build-arg", &format!("{k}={v}")]);
-        }
-        run(build.arg(ROOT));
+        let script = format!("{ROOT}/tests/docker/build-image.sh");
+        run(&mut Command::new(script));
     });
     IMAGE
 }

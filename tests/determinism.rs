@@ -135,3 +135,84 @@ fn bidirectional_integrators() {
         check("phong_spheres.json", spec);
     }
 }
+
+/// A one-shot render split into bands of rows (the farm's tiles, `Inputs::rows`), each
+/// band rendered apart, half of them over photon maps traced again as on another worker,
+/// merges to the bits of the whole render; rows outside the image, a band measured against
+/// a reference and a band of a progressive render are refused.
+#[test]
+fn bands_of_rows_rendered_apart_merge_to_the_bits_of_the_whole_image() {
+    use photonbox::farm::Unit;
+    use photonbox::farm::task::{Kept, merge, render_unit, split};
+    use photonbox::render::{Inputs, Rows, run};
+    use std::sync::atomic::AtomicBool;
+
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json");
+    let scene = Scene::load(&path).unwrap();
+    let raytrace = RenderSpec {
+        width: Some(48),
+        height: Some(40),
+        ..RenderSpec::raytrace(2)
+    };
+    let cancel = AtomicBool::new(false);
+    let bits = |v: &[[f32; 3]]| v.iter().flatten().map(|c| c.to_bits()).collect::<Vec<_>>();
+    for spec in [small(SMALL), raytrace.clone()] {
+        let whole = render(&scene, &spec, &Control::none()).unwrap().image;
+        let tasks = split(&spec, 1e9, 40, 0);
+        assert!(tasks.len() > 1, "{:?}", tasks[0].unit);
+        let shared = Kept::default();
+        let units: Vec<(Unit, Vec<u8>)> = tasks
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let own = Kept::default();
+                let kept = if i % 2 == 0 { &shared } else { &own };
+                let result = render_unit(&scene, &spec, b"", t.unit, kept, &cancel).unwrap();
+                (t.unit, result)
+            })
+            .collect();
+        let merged = merge((48, 40), &units).unwrap();
+        assert!(
+            bits(&merged.pixels) == bits(&whole.pixels),
+            "{spec:?}: the bands differ from the whole image"
+        );
+        let mut missing = units.clone();
+        missing.remove(1);
+        assert!(merge((48, 40), &missing).is_err());
+    }
+
+    let band = |spec: &RenderSpec, first, count, reference| {
+        let inputs = Inputs {
+            rows: Some(Rows { first, count }),
+            reference,
+            ..Inputs::fresh()
+        };
+        run(&scene, spec, inputs, &Control::none(), &mut |_| {
+            std::ops::ControlFlow::Continue(())
+        })
+        .map(|out| (out.image.width, out.image.height))
+        .map_err(|e| e.to_string())
+    };
+    assert_eq!(band(&raytrace, 39, 1, None), Ok((48, 1)));
+    assert!(
+        band(&raytrace, 39, 2, None)
+            .unwrap_err()
+            .contains("rows 39..41")
+    );
+    assert!(band(&raytrace, 0, 0, None).is_err());
+    let reference = photonbox::render::Image::new(48, 40);
+    assert!(
+        band(&raytrace, 0, 8, Some(&reference))
+            .unwrap_err()
+            .contains("reference")
+    );
+    let ppm = RenderSpec {
+        width: Some(48),
+        height: Some(40),
+        ..RenderSpec::ppm(photonbox::spec::Progressive {
+            stop: photonbox::spec::Stop::after(2),
+            ..photonbox::spec::Progressive::DEFAULT
+        })
+    };
+    assert!(band(&ppm, 0, 8, None).unwrap_err().contains("one-shot"));
+}

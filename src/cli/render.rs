@@ -112,6 +112,7 @@ pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
         resume,
         scene_key: source.as_bytes(),
         piece: None,
+        rows: None,
     };
     let mut on_pass = |state: &PpmState| {
         if let Err(e) = checkpoint(&a, state) {

@@ -118,7 +118,8 @@ async fn submit(
             format!("you already have {queued} queued jobs, the limit: wait for some to finish"),
         ));
     }
-    let tasks = split(&spec.render, work, row.memory_bytes);
+    let height = row.size.map_or(0, |(_, h)| h);
+    let tasks = split(&spec.render, work, height, row.memory_bytes);
     let id = api
         .queue
         .submit_job(&row, uploaded.as_deref(), &tasks)

@@ -28,9 +28,10 @@ pub use worker::{WorkerConfig, run_worker};
 pub enum Unit {
     /// Passes `first .. first + count` of a progressive job (1-based, as the engine counts).
     Passes { first: u32, count: u32 },
-    /// The whole job on one worker: a one-shot render (photon, raytrace), or a
-    /// progressive one that stops by time or error rather than a pass count (it cannot be
-    /// split ahead of time).
+    /// Image rows `first .. first + count` of a one-shot job (photon, raytrace): a tile.
+    Rows { first: u32, count: u32 },
+    /// The whole job on one worker: a small one-shot render, or a progressive one that
+    /// stops by time or error rather than a pass count (it cannot be split ahead of time).
     Whole,
 }
 

@@ -3,29 +3,57 @@
 //! into the job's image ([`merge`]). A progressive render that stops by its pass count is
 //! split into pieces of passes, each rendered through the engine's one entry point with
 //! `Inputs::piece`; the pieces' exact sums (`PassSum`) merge to the bits of one run, so a
-//! farm's image is the same bytes as the same job on one box. Anything else is one `Whole`
-//! unit.
+//! farm's image is the same bytes as the same job on one box. A one-shot render large
+//! enough is split into bands of rows (`Inputs::rows`), each worker tracing the job's photon
+//! maps once (the same maps on every worker: they depend on the seed alone) and keeping
+//! them for its next band. Anything else is one `Whole` unit.
 
 use std::ops::ControlFlow;
 use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
 
 use super::{NewTask, Unit};
 use crate::render::ppm::PassSum;
-use crate::render::{Control, Image, Inputs, Piece, Scene, run};
+use crate::render::{
+    Cancelled, Control, Image, Inputs, MapRequest, MapSource, PhotonMaps, Piece, Rows, Scene,
+    SuppliedMaps, run,
+};
 use crate::spec::RenderSpec;
 
 /// Work (ray-sized units, `render::Needs::work`) a task aims at: a few seconds of one
 /// core, so that a lost task costs little and a job spreads over many workers.
 const TASK_WORK: f64 = 1e7;
 
+/// A one-shot job is split into bands of at least this much work (a band smaller is not
+/// worth a task's round trip through the store), and into at most `MIN_TASKS` bands: each
+/// band computes the job's irradiance cache again (`render_with_maps`), so more bands would
+/// only repeat that.
+const MIN_BAND_WORK: f64 = 1e4;
+
 /// A job of at least this many passes is split into at least this many tasks, however
 /// small its passes: enough for a few workers to share.
 const MIN_TASKS: u32 = 16;
 
-/// The tasks of a job whose render is `spec`, of total work `work`, each needing
-/// `memory_bytes`.
-pub fn split(spec: &RenderSpec, work: f64, memory_bytes: u64) -> Vec<NewTask> {
+/// The tasks of a job whose render is `spec`, of total work `work` and `height` rows, each
+/// needing `memory_bytes`.
+pub fn split(spec: &RenderSpec, work: f64, height: u32, memory_bytes: u64) -> Vec<NewTask> {
     let task = |unit| NewTask { unit, memory_bytes };
+    if spec.is_one_shot() {
+        let bands = (work / MIN_BAND_WORK).clamp(1.0, MIN_TASKS.min(height).max(1) as f64);
+        let per_band = height.div_ceil(bands as u32).max(1);
+        if per_band >= height {
+            return vec![task(Unit::Whole)];
+        }
+        return (0..height)
+            .step_by(per_band as usize)
+            .map(|first| {
+                task(Unit::Rows {
+                    first,
+                    count: per_band.min(height - first),
+                })
+            })
+            .collect();
+    }
     let Some(passes) = spec.passes_known_ahead() else {
         return vec![task(Unit::Whole)];
     };
@@ -43,17 +71,43 @@ pub fn split(spec: &RenderSpec, work: f64, memory_bytes: u64) -> Vec<NewTask> {
         .collect()
 }
 
-/// A unit's result as stored: a piece's exact sum ([`PassSum::write_to`]), or a whole
-/// render's image (little-endian f32 RGB, row-major). `radii`: the render's initial radii
-/// if an earlier piece found them; a piece sets them when it does.
+/// What a worker keeps between the tasks of one job.
+#[derive(Default)]
+pub struct Kept {
+    /// The render's initial radii, once a piece has found them (see `render::Piece`).
+    pub radii: Mutex<Option<[f64; 2]>>,
+    /// The job's photon maps, once a band has traced them.
+    pub maps: Mutex<Option<Arc<PhotonMaps>>>,
+}
+
+impl MapSource for Kept {
+    fn photon_maps(&self, want: &MapRequest) -> Result<SuppliedMaps, Cancelled> {
+        let kept = self.maps.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        if let Some(maps) = kept.filter(|m| m.params == *want.params) {
+            return Ok(SuppliedMaps {
+                maps,
+                traced: false,
+            });
+        }
+        let maps = Arc::new(want.trace()?);
+        *self.maps.lock().unwrap_or_else(|e| e.into_inner()) = Some(maps.clone());
+        Ok(SuppliedMaps { maps, traced: true })
+    }
+}
+
+/// A unit's result as stored: a piece's exact sum ([`PassSum::write_to`]), or an image (a
+/// band's or the whole render's: little-endian f32 RGB, row-major). `kept`: what earlier
+/// tasks of the job on this worker found (a piece's initial radii, a band's maps); set
+/// by this one when it finds them.
 pub fn render_unit(
     scene: &Scene,
     spec: &RenderSpec,
     scene_key: &[u8],
     unit: Unit,
-    radii: &std::sync::Mutex<Option<[f64; 2]>>,
+    kept: &Kept,
     cancel: &AtomicBool,
 ) -> Result<Vec<u8>, crate::render::RenderError> {
+    let radii = &kept.radii;
     let control = Control {
         cancel: Some(cancel),
         progress: None,
@@ -83,9 +137,15 @@ pub fn render_unit(
             sum.expect("a piece runs to its last pass or fails")
                 .write_to(&mut bytes);
         }
-        Unit::Whole => {
+        Unit::Whole | Unit::Rows { .. } => {
+            let rows = match unit {
+                Unit::Rows { first, count } => Some(Rows { first, count }),
+                _ => None,
+            };
             let inputs = Inputs {
+                maps: kept,
                 scene_key,
+                rows,
                 ..Inputs::fresh()
             };
             let out = run(scene, spec, inputs, &control, &mut |_| {
@@ -107,11 +167,14 @@ pub fn merge(size: (u32, u32), units: &[(Unit, Vec<u8>)]) -> Result<Image, Strin
     if let [(Unit::Whole, bytes)] = units {
         return image_of(width, height, bytes);
     }
+    if let [(Unit::Rows { .. }, _), ..] = units {
+        return merge_rows(size, units);
+    }
     let mut sum = PassSum::new(width, height);
     let mut passes = 0u32;
     for (unit, bytes) in units {
         let Unit::Passes { count, .. } = unit else {
-            return Err("a job mixes whole and partial units".into());
+            return Err("a job mixes units of passes and others".into());
         };
         let piece = PassSum::read_from(width, height, bytes).ok_or_else(|| {
             format!(
@@ -123,6 +186,29 @@ pub fn merge(size: (u32, u32), units: &[(Unit, Vec<u8>)]) -> Result<Image, Strin
         passes += count;
     }
     Ok(sum.mean(passes))
+}
+
+/// The image of bands that cover its rows once, in order.
+fn merge_rows(size: (u32, u32), units: &[(Unit, Vec<u8>)]) -> Result<Image, String> {
+    let (width, height) = size;
+    let mut image = Image::new(width, height);
+    let mut next = 0u32;
+    for (unit, bytes) in units {
+        let &Unit::Rows { first, count } = unit else {
+            return Err("a job mixes bands of rows and other units".into());
+        };
+        if first != next || first as u64 + count as u64 > height as u64 {
+            return Err(format!("rows {first}+{count} do not follow row {next}"));
+        }
+        let band = image_of(width, count, bytes)?;
+        let at = first as usize * width as usize;
+        image.pixels[at..at + band.pixels.len()].copy_from_slice(&band.pixels);
+        next += count;
+    }
+    if next != height {
+        return Err(format!("the bands end at row {next} of {height}"));
+    }
+    Ok(image)
 }
 
 fn image_of(width: u32, height: u32, bytes: &[u8]) -> Result<Image, String> {
@@ -159,7 +245,7 @@ mod tests {
             .iter()
             .map(|t| match t.unit {
                 Unit::Passes { first, count } => (first, count),
-                Unit::Whole => panic!("whole"),
+                other => panic!("{other:?}"),
             })
             .collect()
     }
@@ -167,7 +253,7 @@ mod tests {
     #[test]
     fn passes_are_covered_once_in_order() {
         for (iterations, work) in [(48, 48e4), (48, 48e9), (7, 7e9), (1, 1.0), (100, 1e6)] {
-            let tasks = split(&ppm(iterations), work, 5);
+            let tasks = split(&ppm(iterations), work, 30, 5);
             let p = pieces(&tasks);
             let mut next = 1;
             for &(first, count) in &p {
@@ -182,8 +268,39 @@ mod tests {
 
     #[test]
     fn small_passes_still_spread_and_large_ones_go_one_by_one() {
-        assert_eq!(split(&ppm(48), 48e4, 0).len(), 16);
-        assert_eq!(split(&ppm(48), 48e9, 0).len(), 48);
+        assert_eq!(split(&ppm(48), 48e4, 30, 0).len(), 16);
+        assert_eq!(split(&ppm(48), 48e9, 30, 0).len(), 48);
+    }
+
+    #[test]
+    fn large_one_shot_jobs_go_in_bands_covering_every_row_once() {
+        let photon = RenderSpec::photon(crate::spec::PhotonMapping::PHOTON);
+        for (work, height, bands) in [(1e9, 100, 15), (1e9, 3, 3), (5e4, 100, 5)] {
+            let tasks = split(&photon, work, height, 7);
+            let mut next = 0;
+            for t in &tasks {
+                let Unit::Rows { first, count } = t.unit else {
+                    panic!("{:?}", t.unit)
+                };
+                assert_eq!((first, t.memory_bytes), (next, 7));
+                next += count;
+            }
+            assert_eq!((next, tasks.len()), (height, bands), "{work} {height}");
+        }
+        assert!(matches!(
+            split(&photon, 1e3, 100, 0)[..],
+            [NewTask {
+                unit: Unit::Whole,
+                ..
+            }]
+        ));
+        assert!(matches!(
+            split(&RenderSpec::raytrace(1), 1e9, 1, 0)[..],
+            [NewTask {
+                unit: Unit::Whole,
+                ..
+            }]
+        ));
     }
 
     #[test]
@@ -196,7 +313,7 @@ mod tests {
             ..Progressive::DEFAULT
         });
         assert!(matches!(
-            split(&spec, 1e9, 0)[..],
+            split(&spec, 1e9, 30, 0)[..],
             [NewTask {
                 unit: Unit::Whole,
                 ..

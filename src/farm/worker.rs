@@ -16,7 +16,7 @@ use tokio::sync::watch;
 
 use super::queue::CANCEL_CHANNEL;
 use super::records::{JobImages, JobSource};
-use super::task::{merge, render_unit};
+use super::task::{Kept, merge, render_unit};
 use super::{Completion, FarmError, Lease, Queue};
 use crate::render::{Control, RenderError, Scene, output};
 use crate::server::jobs::JobSpec;
@@ -52,8 +52,8 @@ struct Prepared {
     resolved: ResolvedScene,
     spec: JobSpec,
     size: (u32, u32),
-    /// The render's initial radii, once a piece has found them (see `render::Piece`).
-    radii: std::sync::Mutex<Option<[f64; 2]>>,
+    /// What its tasks found that the next ones reuse (initial radii, photon maps).
+    kept: Kept,
 }
 
 /// Run a worker until `shutdown` turns true; `joined` is given its queue once it has
@@ -175,7 +175,7 @@ impl Task<'_> {
                     &job2.spec.render,
                     key,
                     unit,
-                    &job2.radii,
+                    &job2.kept,
                     &cancel2,
                 )
             })
@@ -338,6 +338,6 @@ fn prepare(
         resolved,
         spec,
         size,
-        radii: std::sync::Mutex::new(None),
+        kept: Kept::default(),
     })
 }

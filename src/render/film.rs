@@ -129,7 +129,21 @@ pub(crate) fn render_film<P: CameraPaths>(
     seed: u64,
     control: &Control,
 ) -> Result<FilmOutput, Cancelled> {
-    let (w, h) = (camera.width, camera.height);
+    render_film_rows(paths, camera, 0..camera.height, spp, seed, control)
+}
+
+/// [`render_film`] of image rows `rows` alone: the output is that band (`rows.len()` rows),
+/// each pixel the bits it has in the whole image.
+pub(crate) fn render_film_rows<P: CameraPaths>(
+    paths: &P,
+    camera: &Camera,
+    rows: std::ops::Range<u32>,
+    spp: u32,
+    seed: u64,
+    control: &Control,
+) -> Result<FilmOutput, Cancelled> {
+    let (w, y_start) = (camera.width, rows.start);
+    let h = rows.end.min(camera.height).saturating_sub(y_start);
     let tiles_x = w.div_ceil(TILE);
     let tiles_y = h.div_ceil(TILE);
     let n_tiles = tiles_x * tiles_y;
@@ -151,12 +165,13 @@ pub(crate) fn render_film<P: CameraPaths>(
                 let forward = (y - y0) % 2 == 0;
                 for i in 0..x1 - x0 {
                     let x = if forward { x0 + i } else { x1 - 1 - i };
-                    let pixel = (y as u64) * w as u64 + x as u64;
+                    let pixel = (y_start + y) as u64 * w as u64 + x as u64;
                     let mut px = PixelSum::default();
                     for j in 0..spp {
                         let mut s = paths.sampler(seed, pixel, j, spp);
                         let jitter = s.next_2d();
-                        let ray = camera.ray(x as f32 + jitter.x, y as f32 + jitter.y);
+                        let y_image = (y_start + y) as f32;
+                        let ray = camera.ray(x as f32 + jitter.x, y_image + jitter.y);
                         let l = paths.radiance(&ray, pixel, &mut s, scratch);
                         control.check()?;
                         px.add(l);

@@ -32,7 +32,7 @@ pub use oneshot::trace_maps;
 pub use outcome::{RenderError, RenderOutput};
 pub use photon::{PhotonMaps, PhotonStore};
 pub use run::{
-    Inputs, MapRequest, MapSource, Needs, OnPass, Piece, Prebuilt, ProgressModel, SuppliedMaps,
-    TraceNow, fingerprint, render, run,
+    Inputs, MapRequest, MapSource, Needs, OnPass, Piece, Prebuilt, ProgressModel, Rows,
+    SuppliedMaps, TraceNow, fingerprint, render, run,
 };
 pub use scene::{Scene, SceneDesc, SceneError};

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use crate::render::control::{Cancelled, Control};
 use crate::render::effects::{Analysis, analyse};
-use crate::render::film::render_film;
+use crate::render::film::render_film_rows;
 use crate::render::integrator::Shader;
 use crate::render::outcome::RenderOutput;
 use crate::render::photon::{
@@ -33,12 +33,14 @@ pub fn trace_maps(
     build_photon_maps(scene, &analyse(scene, spec).photon_params, control)
 }
 
-/// The camera pass over photon maps traced for this scene and `analysis.photon_params`.
+/// The camera pass over photon maps traced for this scene and `analysis.photon_params`,
+/// over image rows `rows` (all of them, but for a farm's tile).
 pub(crate) fn render_with_maps(
     scene: &Scene,
     maps: &PhotonMaps,
     spec: &RenderSpec,
     analysis: &Analysis,
+    rows: std::ops::Range<u32>,
     control: &Control,
 ) -> Result<RenderOutput, Cancelled> {
     assert_eq!(
@@ -85,7 +87,7 @@ pub(crate) fn render_with_maps(
         control: *control,
     };
     let t_render = Instant::now();
-    let film = render_film(&shader, &camera, spec.spp(), spec.seed, control)?;
+    let film = render_film_rows(&shader, &camera, rows, spec.spp(), spec.seed, control)?;
     let render = t_render.elapsed().as_secs_f64();
 
     let stats = collect(&StatsInput {

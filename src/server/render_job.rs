@@ -81,6 +81,7 @@ impl JobRender<'_> {
             resume,
             scene_key: self.scene.text.as_bytes(),
             piece: None,
+            rows: None,
         };
         let mut on_pass = |state: &PpmState| self.after_pass(state, &live);
         let out =

@@ -302,6 +302,15 @@ impl RenderSpec {
         self.stop().is_some()
     }
 
+    /// A one-shot render (photon maps, if any, and one camera pass): its image can be
+    /// split into bands of rows (`render::Rows`, a farm's tiles).
+    pub fn is_one_shot(&self) -> bool {
+        matches!(
+            self.integrator,
+            Integrator::Raytrace(_) | Integrator::Photon(_)
+        )
+    }
+
     /// The number of passes, when it is known before the render starts: a progressive
     /// integrator (not `auto`, which may choose a one-shot render) that stops by its pass
     /// count alone. Such a render can be split into pieces of passes ahead of time (a

@@ -37,6 +37,24 @@ fn a_job_spread_over_three_workers_is_the_bytes_of_one_box(kind: Kind) {
 }
 both!(a_job_spread_over_three_workers_is_the_bytes_of_one_box);
 
+fn a_one_shot_job_in_bands_over_three_workers_is_the_bytes_of_one_box(kind: Kind) {
+    let d = Deployment::start(kind, 3);
+    let (api, admin) = (&d.api, &d.admin);
+    let id = api.submit(admin, photon_params());
+    let served = api.wait_done(admin, id);
+    if let Kind::Postgres = kind {
+        let job = api.job(admin, id);
+        let tasks = job["stats"]["farm"]["tasks"].as_i64().unwrap();
+        assert!(tasks >= 8, "{job}");
+        assert!(workers_of(d.store(), id) >= 2, "the bands were not spread");
+    }
+    assert!(
+        served == render_one_box(&photon_params()),
+        "the served EXR differs from photonbox render's"
+    );
+}
+both!(a_one_shot_job_in_bands_over_three_workers_is_the_bytes_of_one_box);
+
 #[test]
 fn a_worker_killed_mid_task_loses_it_to_another_and_the_bytes_hold() {
     let store = fresh_store();

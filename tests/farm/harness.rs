@@ -19,18 +19,26 @@ pub fn ppm_params() -> Value {
            "width": 40, "height": 30, "seed": 11})
 }
 
-/// The same job by `photonbox render` on one box: its EXR's bytes (rendered once per test
-/// run).
-pub fn one_box_exr() -> Vec<u8> {
-    static EXR: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
-    EXR.get_or_init(render_one_box_exr).clone()
+/// A photon-mapping job large enough to be split into bands of rows.
+pub fn photon_params() -> Value {
+    json!({"integrator": "photon", "photons": 20000, "caustic_photons": 20000,
+           "width": 64, "height": 48, "spp": 2, "seed": 3})
 }
 
-fn render_one_box_exr() -> Vec<u8> {
+/// The `ppm_params()` job by `photonbox render` on one box: its EXR's bytes (rendered
+/// once per test run).
+pub fn one_box_exr() -> Vec<u8> {
+    static EXR: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    EXR.get_or_init(|| render_one_box(&ppm_params())).clone()
+}
+
+/// The job of `params` (the server's names) by `photonbox render` on one box, of the
+/// scene the tests submit: its EXR's bytes.
+pub fn render_one_box(params: &Value) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("one.exr");
-    let out = Command::new(BIN)
-        .arg("render")
+    let mut cmd = Command::new(BIN);
+    cmd.arg("render")
         .arg(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/scenes/cornell_mirror_glass.json"
@@ -39,27 +47,12 @@ fn render_one_box_exr() -> Vec<u8> {
         .arg(dir.path().join("one.png"))
         .arg("--exr")
         .arg(&exr)
-        .args([
-            "--integrator",
-            "ppm",
-            "--photons",
-            "3000",
-            "--caustic-photons",
-            "3000",
-        ])
-        .args([
-            "--iterations",
-            "48",
-            "--width",
-            "40",
-            "--height",
-            "30",
-            "--seed",
-            "11",
-        ])
-        .args(["--threads", "1"])
-        .output()
-        .unwrap();
+        .args(["--threads", "1"]);
+    for (k, v) in params.as_object().unwrap() {
+        let v = v.as_str().map_or(v.to_string(), str::to_string);
+        cmd.arg(format!("--{}", k.replace('_', "-"))).arg(v);
+    }
+    let out = cmd.output().unwrap();
     assert!(
         out.status.success(),
         "{}",

@@ -97,6 +97,18 @@ pub struct Inputs<'a> {
     /// the output's image is then of no use, the caller takes the piece's exact sum from
     /// the state `on_pass` sees after its last pass.
     pub piece: Option<Piece>,
+    /// Render only these rows of a one-shot render's image (a farm's tile; see [`Rows`]).
+    pub rows: Option<Rows>,
+}
+
+/// Rows `first .. first + count` of a one-shot render's image: the output image is that
+/// band, each of its pixels the bits it has in the whole image (a pixel's samples draw from
+/// its own random streams, `render_film`), so bands rendered apart, even on other
+/// machines over maps traced again from the same seed, make up the image of one run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Rows {
+    pub first: u32,
+    pub count: u32,
 }
 
 impl Inputs<'_> {
@@ -108,6 +120,7 @@ impl Inputs<'_> {
             resume: None,
             scene_key: b"",
             piece: None,
+            rows: None,
         }
     }
 }
@@ -185,6 +198,11 @@ fn progressive(
         Integrator::Raytrace(_) | Integrator::Photon(_) => unreachable!("one-shot"),
         Integrator::Auto(_) => unreachable!("auto is resolved before"),
     };
+    if inputs.rows.is_some() {
+        return Err(RenderError::Input(
+            "a band of rows is only of a one-shot render (raytrace, photon)".into(),
+        ));
+    }
     let stop = spec.stop().expect("the progressive integrators stop");
     let run = ProgressiveRun {
         reference: inputs.reference,
@@ -224,6 +242,23 @@ fn one_shot(
             crate::spec::progressive_names()
         )));
     }
+    let (_, height) = spec.resolution((scene.camera.width, scene.camera.height));
+    let rows = match inputs.rows {
+        None => 0..height,
+        Some(r) if r.count == 0 || r.first as u64 + r.count as u64 > height as u64 => {
+            return Err(RenderError::Input(format!(
+                "rows {}..{} are not rows of the {height}-row image",
+                r.first,
+                r.first as u64 + r.count as u64
+            )));
+        }
+        Some(_) if inputs.reference.is_some() => {
+            return Err(RenderError::Input(
+                "a band of rows is not measured against a reference: render the whole image".into(),
+            ));
+        }
+        Some(r) => r.first..r.first + r.count,
+    };
     let pp = &analysis.photon_params;
     let supplied = if pp.global_photons + pp.caustic_photons == 0 {
         SuppliedMaps {
@@ -238,7 +273,7 @@ fn one_shot(
         };
         inputs.maps.photon_maps(&want)?
     };
-    let mut out = render_with_maps(scene, &supplied.maps, spec, analysis, control)?;
+    let mut out = render_with_maps(scene, &supplied.maps, spec, analysis, rows, control)?;
     if !supplied.traced {
         out.stats.maps_were_reused();
     }

@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# Builds the Dockerfile's image as the container tests use it: photonbox:container-test, from
+# the base images of base-images.sh, with PROFILE=quick (tests/container.rs). tests/run.sh
+# starts it in the background while the tests compile; tests/container.rs runs it again,
+# which Docker's build cache then answers at once.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+tests/docker/base-images.sh
+docker build -q -t photonbox:container-test \
+  --build-arg BUILD_IMAGE=photonbox/rust:bookworm \
+  --build-arg RUNTIME_IMAGE=photonbox/debian:bookworm \
+  --build-arg PROFILE=quick . >/dev/null
