@@ -16,7 +16,7 @@ use super::{NewTask, Unit};
 use crate::render::ppm::PassSum;
 use crate::render::{
     Cancelled, Control, Image, Inputs, MapRequest, MapSource, PhotonMaps, Piece, Rows, Scene,
-    SuppliedMaps, run,
+    SuppliedMaps, TraceNow, run,
 };
 use crate::spec::RenderSpec;
 
@@ -142,8 +142,11 @@ pub fn render_unit(
                 Unit::Rows { first, count } => Some(Rows { first, count }),
                 _ => None,
             };
+            // A band's maps are kept for the job's next band on this worker; a whole
+            // render's are of no further use.
+            let maps: &dyn MapSource = if rows.is_some() { kept } else { &TraceNow };
             let inputs = Inputs {
-                maps: kept,
+                maps,
                 scene_key,
                 rows,
                 ..Inputs::fresh()

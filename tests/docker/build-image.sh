@@ -1,8 +1,7 @@
 #!/usr/bin/env bash
 # Builds the Dockerfile's image as the container tests use it: photonbox:container-test, from
-# the base images of base-images.sh, with PROFILE=quick (tests/container.rs). tests/run.sh
-# starts it in the background while the tests compile; tests/container.rs runs it again,
-# which Docker's build cache then answers at once.
+# the base images of base-images.sh, with PROFILE=quick (tests/container.rs runs it; run
+# again, Docker's build cache answers at once).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 tests/docker/base-images.sh
