@@ -12,15 +12,24 @@ use crate::both;
 use crate::harness::*;
 use crate::pg::Cluster;
 
-fn a_job_spread_over_three_workers_is_the_bytes_of_one_box(kind: Kind) {
+/// A job of `params` rendered by a deployment of three workers: the deployment, the job's
+/// id and its served EXR (on PostgreSQL, checked to be spread over at least two workers).
+fn on_three_workers(kind: Kind, params: serde_json::Value) -> (Deployment, i64, Vec<u8>) {
     let d = Deployment::start(kind, 3);
+    let id = d.api.submit(&d.admin, params);
+    let served = d.api.wait_done(&d.admin, id);
+    if let Kind::Postgres = kind {
+        assert!(workers_of(d.store(), id) >= 2, "the tasks were not spread");
+    }
+    (d, id, served)
+}
+
+fn a_job_spread_over_three_workers_is_the_bytes_of_one_box(kind: Kind) {
+    let (d, id, served) = on_three_workers(kind, ppm_params());
     let (api, admin) = (&d.api, &d.admin);
-    let id = api.submit(admin, ppm_params());
-    let served = api.wait_done(admin, id);
     if let Kind::Postgres = kind {
         let job = api.job(admin, id);
         assert_eq!(job["stats"]["farm"]["tasks"], 16, "{job}");
-        assert!(workers_of(d.store(), id) >= 2, "the tasks were not spread");
         // GET /api/workers counts each worker's accepted results.
         let (status, body) = api.get(admin, "/api/workers");
         assert_eq!(status, 200);
@@ -38,15 +47,11 @@ fn a_job_spread_over_three_workers_is_the_bytes_of_one_box(kind: Kind) {
 both!(a_job_spread_over_three_workers_is_the_bytes_of_one_box);
 
 fn a_one_shot_job_in_bands_over_three_workers_is_the_bytes_of_one_box(kind: Kind) {
-    let d = Deployment::start(kind, 3);
-    let (api, admin) = (&d.api, &d.admin);
-    let id = api.submit(admin, photon_params());
-    let served = api.wait_done(admin, id);
+    let (d, id, served) = on_three_workers(kind, photon_params());
     if let Kind::Postgres = kind {
-        let job = api.job(admin, id);
+        let job = d.api.job(&d.admin, id);
         let tasks = job["stats"]["farm"]["tasks"].as_i64().unwrap();
         assert!(tasks >= 8, "{job}");
-        assert!(workers_of(d.store(), id) >= 2, "the bands were not spread");
     }
     assert!(
         served == render_one_box(&photon_params()),
