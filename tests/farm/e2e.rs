@@ -66,7 +66,7 @@ fn a_worker_killed_mid_task_loses_it_to_another_and_the_bytes_hold() {
     let (api, admin) = start_api(&store);
     let admin = admin.unwrap();
     let victim = start_worker(&store, "victim", 1.0);
-    let id = api.submit(&admin, ppm_params());
+    let id = api.submit(&admin, slow_ppm_params());
     // As soon as the victim holds a task, SIGKILL it.
     let url = store.clone();
     store_query(&url, async move |pool| {
@@ -79,7 +79,10 @@ fn a_worker_killed_mid_task_loses_it_to_another_and_the_bytes_hold() {
         .collect();
     let farm = api.wait_done(&admin, id);
     assert!(api.metric("photonbox_farm_store_leases_expired_total") >= 1);
-    assert!(farm == one_box_exr(), "after a lost worker the EXR differs");
+    assert!(
+        farm == slow_one_box_exr(),
+        "after a lost worker the EXR differs"
+    );
 }
 
 #[test]
@@ -96,7 +99,7 @@ fn a_worker_cut_off_from_the_store_has_its_stale_result_refused() {
     let (api, admin) = start_api(&store);
     let admin = admin.unwrap();
     let _cut = start_worker(&cut_url, "cut", 1.0);
-    let id = api.submit(&admin, ppm_params());
+    let id = api.submit(&admin, slow_ppm_params());
     store_query(&store, async move |pool| {
         await_lease(pool, "cut").await;
         // Cut it off: no new logins, its connections terminated.
@@ -108,10 +111,23 @@ fn a_worker_cut_off_from_the_store_has_its_stale_result_refused() {
         .await
         .unwrap();
     });
+    // It was cut off mid-task: the task it holds is still leased to it, not done.
+    store_query(&store, async |pool| {
+        let held: i64 = sqlx::query_scalar(
+            "SELECT count(*) FROM tasks WHERE worker = 'cut' AND state = 'leased'",
+        )
+        .fetch_one(pool)
+        .await
+        .unwrap();
+        assert_eq!(
+            held, 1,
+            "the cut-off worker finished its task before the cut"
+        );
+    });
     // Another worker finishes the job, the cut-off worker's task included.
     let _other = start_worker(&store, "other", 10.0);
     let farm = api.wait_done(&admin, id);
-    assert!(farm == one_box_exr());
+    assert!(farm == slow_one_box_exr());
     // Let it back: it hands its (stale) result in, and the fence refuses it.
     store_query(&store, async |pool| {
         sqlx::raw_sql("ALTER ROLE cut LOGIN")

@@ -19,6 +19,14 @@ pub fn ppm_params() -> Value {
            "width": 40, "height": 30, "seed": 11})
 }
 
+/// A ppm job whose tasks (one pass each) take a few tenths of a second on one thread: long
+/// enough that a worker seen holding one is still rendering it when a test kills it or
+/// cuts it off (`ppm_params`' tasks take milliseconds).
+pub fn slow_ppm_params() -> Value {
+    json!({"integrator": "ppm", "photons": 300000, "caustic_photons": 300000,
+           "iterations": 16, "width": 64, "height": 48, "seed": 5})
+}
+
 /// A photon-mapping job large enough to be split into bands of rows.
 pub fn photon_params() -> Value {
     json!({"integrator": "photon", "photons": 20000, "caustic_photons": 20000,
@@ -30,6 +38,13 @@ pub fn photon_params() -> Value {
 pub fn one_box_exr() -> Vec<u8> {
     static EXR: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
     EXR.get_or_init(|| render_one_box(&ppm_params())).clone()
+}
+
+/// The `slow_ppm_params()` job by `photonbox render` on one box (once per test run).
+pub fn slow_one_box_exr() -> Vec<u8> {
+    static EXR: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    EXR.get_or_init(|| render_one_box(&slow_ppm_params()))
+        .clone()
 }
 
 /// The job of `params` (the server's names) by `photonbox render` on one box, of the
