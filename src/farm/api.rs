@@ -16,10 +16,12 @@ use axum::routing::get;
 use axum::{Json, Router};
 use serde_json::{Value, json};
 
+use super::preview::{Encoding, Previews};
 use super::task::split;
-use super::{FarmError, Queue};
+use super::{FarmError, Queue, TaskCount};
 use crate::server::auth::{User, bearer, token_hash};
 use crate::server::error::ApiError;
+use crate::server::jobs::JobSpec;
 use crate::server::needs::Limits;
 use crate::server::scenes::SceneCatalog;
 use crate::server::store::{JobRow, Status};
@@ -31,6 +33,7 @@ pub struct FarmApi {
     pub catalog: Arc<SceneCatalog>,
     pub limits: Limits,
     pub body_timeout: Duration,
+    pub previews: Previews,
 }
 
 type ApiRef = Arc<FarmApi>;
@@ -74,7 +77,7 @@ pub(super) async fn visible_job(
     api: &FarmApi,
     user: &User,
     id: i64,
-) -> Result<(JobRow, f64), ApiError> {
+) -> Result<(JobRow, TaskCount), ApiError> {
     match api.queue.job(id).await.map_err(store_error)? {
         Some((row, p)) if user.admin || row.user_id == user.id || row.public => Ok((row, p)),
         _ => Err(ApiError::not_found("job")),
@@ -136,8 +139,8 @@ async fn job(
     Path(id): Path<String>,
 ) -> Result<Json<Value>, ApiError> {
     let user = user(&api, &headers).await?;
-    let (row, progress) = visible_job(&api, &user, job_id(&id)?).await?;
-    Ok(Json(job_json(&row, progress, &user)))
+    let (row, tasks) = visible_job(&api, &user, job_id(&id)?).await?;
+    Ok(Json(job_json(&row, tasks, &user)))
 }
 
 /// The jobs the user may see, newest first (at most [`LIST_MAX`]).
@@ -156,7 +159,7 @@ async fn list(State(api): State<ApiRef>, headers: HeaderMap) -> Result<Json<Valu
 const LIST_MAX: i64 = 500;
 
 /// A job as `GET /api/jobs/{id}` shows it (the one-box server's fields that the farm has).
-fn job_json(row: &JobRow, progress: f64, user: &User) -> Value {
+fn job_json(row: &JobRow, tasks: TaskCount, user: &User) -> Value {
     let raw = |t: &Option<String>| {
         t.as_deref()
             .and_then(|t| serde_json::from_str::<Value>(t).ok())
@@ -168,7 +171,7 @@ fn job_json(row: &JobRow, progress: f64, user: &User) -> Value {
         "scene": row.scene_name,
         "params": serde_json::from_str::<Value>(&row.params_json).unwrap_or(Value::Null),
         "status": row.status.as_str(),
-        "progress": if row.status == Status::Done { 1.0 } else { progress },
+        "progress": if row.status == Status::Done { 1.0 } else { tasks.progress() },
         "created": row.created,
         "started": row.started,
         "finished": row.finished,
@@ -196,35 +199,63 @@ async fn cancel(
     Ok(Json(json!({"id": row.id, "status": row.status.as_str()})))
 }
 
+/// The job's image: the final one, or while it runs a preview of its tasks done so far
+/// (`preview.rs`).
 async fn image(
     State(api): State<ApiRef>,
     headers: HeaderMap,
     Path((id, file)): Path<(String, String)>,
 ) -> Result<Response, ApiError> {
     let user = user(&api, &headers).await?;
-    let (exr, mime) = match file.as_str() {
-        "image.exr" => (true, "image/x-exr"),
-        "image.png" => (false, "image/png"),
+    let (encoding, mime) = match file.as_str() {
+        "image.exr" => (Encoding::Exr, "image/x-exr"),
+        "image.png" => (Encoding::Png, "image/png"),
         _ => return Err(ApiError::not_found("file")),
     };
     let (row, _) = visible_job(&api, &user, job_id(&id)?).await?;
-    let bytes = api
-        .queue
-        .job_image(row.id, exr)
-        .await
-        .map_err(store_error)?;
-    match bytes {
-        Some(b) => Ok(([(header::CONTENT_TYPE, mime)], b).into_response()),
-        None => Err(ApiError::new(
-            StatusCode::NOT_FOUND,
-            Some("file"),
-            format!(
-                "job {} is {}: it has no image yet",
-                row.id,
-                row.status.as_str()
-            ),
-        )),
+    let exr = encoding == Encoding::Exr;
+    if row.status.is_final() {
+        let bytes = api
+            .queue
+            .job_image(row.id, exr)
+            .await
+            .map_err(store_error)?;
+        if let Some(b) = bytes {
+            return Ok(([(header::CONTENT_TYPE, mime)], b).into_response());
+        }
+    } else if let Some(preview) = preview(&api, &row, encoding).await? {
+        let headers = [
+            (header::CONTENT_TYPE, mime),
+            // The next task's result replaces it.
+            (header::CACHE_CONTROL, "no-store"),
+        ];
+        return Ok((headers, preview).into_response());
     }
+    Err(ApiError::new(
+        StatusCode::NOT_FOUND,
+        Some("file"),
+        format!(
+            "job {} is {}: it has no image yet",
+            row.id,
+            row.status.as_str()
+        ),
+    ))
+}
+
+/// The preview of running job `row`, if a task of it is done.
+async fn preview(
+    api: &FarmApi,
+    row: &JobRow,
+    encoding: Encoding,
+) -> Result<Option<Vec<u8>>, ApiError> {
+    let Some(size) = row.size else {
+        return Ok(None);
+    };
+    let spec = JobSpec::from_stored(&row.params_json).map_err(ApiError::internal)?;
+    api.previews
+        .get(&api.queue, row.id, size, spec.exposure, encoding)
+        .await
+        .map_err(|e| ApiError::internal(format!("the preview: {e}")))
 }
 
 async fn workers(State(api): State<ApiRef>, headers: HeaderMap) -> Result<Json<Value>, ApiError> {

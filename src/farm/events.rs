@@ -1,5 +1,6 @@
 //! `GET /api/jobs/{id}/events` on a farm's API instance: the one-box server's events
-//! (`status`, `progress`, then `done`, `failed` or `cancelled`; `server::events`), made
+//! (`status`, `progress`, `preview` for every task done, then `done`, `failed` or
+//! `cancelled`; `server::events`), made
 //! from the job's row in the store, read every [`EVERY`]. Any instance serves any job's
 //! stream; a farm job's progress is its tasks done over its tasks.
 
@@ -45,14 +46,15 @@ pub async fn job_events(
         }
         loop {
             // A job deleted, or a store out of reach, ends the stream.
-            let (row, progress) = st.api.queue.job(id).await.ok().flatten()?;
+            let (row, tasks) = st.api.queue.job(id).await.ok().flatten()?;
             let done = row.status == Status::Done;
             let snap = Snapshot {
                 status: row.status,
-                progress: if done { 1.0 } else { progress },
+                progress: if done { 1.0 } else { tasks.progress() },
                 phase: (row.status == Status::Running).then_some("passes"),
                 eta_seconds: None,
-                previews: done as u64,
+                // A task done is a new preview (`preview.rs`), and the end the final image.
+                previews: tasks.done.max(done as u32) as u64,
                 error: row.error.clone(),
             };
             let evs = diff_events(st.last.as_ref(), &snap);

@@ -68,6 +68,40 @@ impl Queue {
             .collect()
     }
 
+    /// The tasks of job `id` done so far (their seqs, in merge order): what a preview
+    /// while it runs is made of.
+    pub async fn done_tasks(&self, id: i64) -> Result<Vec<i32>, FarmError> {
+        Ok(sqlx::query_scalar(
+            "SELECT seq FROM tasks WHERE job_id = $1 AND state = 'done' ORDER BY seq",
+        )
+        .bind(id)
+        .fetch_all(self.pool())
+        .await?)
+    }
+
+    /// The units and results of job `id`'s done tasks among `seqs`, in merge order.
+    pub async fn done_results(
+        &self,
+        id: i64,
+        seqs: &[i32],
+    ) -> Result<Vec<(i32, Unit, Vec<u8>)>, FarmError> {
+        let rows = sqlx::query(
+            "SELECT seq, unit::text, result FROM tasks
+              WHERE job_id = $1 AND seq = ANY($2) AND state = 'done' AND result IS NOT NULL
+              ORDER BY seq",
+        )
+        .bind(id)
+        .bind(seqs)
+        .fetch_all(self.pool())
+        .await?;
+        rows.iter()
+            .map(|r| {
+                let unit = serde_json::from_str(r.try_get(1)?)?;
+                Ok((r.try_get(0)?, unit, r.try_get(2)?))
+            })
+            .collect()
+    }
+
     /// The units and results of job `id`'s tasks in merge order (None for a task not
     /// done).
     pub async fn results(&self, id: i64) -> Result<Vec<(Unit, Option<Vec<u8>>)>, FarmError> {

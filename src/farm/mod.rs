@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub mod api;
 mod events;
 mod jobs;
+pub mod preview;
 pub mod probe;
 pub mod queue;
 mod records;
@@ -19,7 +20,7 @@ pub mod worker;
 pub mod workers;
 
 pub use queue::{Completion, Lease, LeaseLost, NewTask, Queue};
-pub use records::{JobImages, JobSource};
+pub use records::{JobImages, JobSource, TaskCount};
 pub use worker::{WorkerConfig, run_worker};
 
 /// What one task renders.

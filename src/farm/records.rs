@@ -29,7 +29,25 @@ const JOB_COLUMNS: &str = "id, user_id, public, status, scene_name,
     result_estimate, width, height, created, started, finished, error, stats_json,
     tasks_done, tasks_total";
 
-fn job_row(r: &sqlx::postgres::PgRow) -> Result<(JobRow, f64), sqlx::Error> {
+/// A job's tasks: how many are done of how many.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TaskCount {
+    pub done: u32,
+    pub total: u32,
+}
+
+impl TaskCount {
+    /// A farm job's progress: its tasks done over its tasks.
+    pub fn progress(self) -> f64 {
+        if self.total > 0 {
+            self.done as f64 / self.total as f64
+        } else {
+            0.0
+        }
+    }
+}
+
+fn job_row(r: &sqlx::postgres::PgRow) -> Result<(JobRow, TaskCount), sqlx::Error> {
     let side = |c: &str| -> Result<Option<u32>, sqlx::Error> {
         Ok(r.try_get::<Option<i32>, _>(c)?
             .and_then(|v| u32::try_from(v).ok()))
@@ -54,12 +72,12 @@ fn job_row(r: &sqlx::postgres::PgRow) -> Result<(JobRow, f64), sqlx::Error> {
         error: r.try_get("error")?,
         stats_json: r.try_get("stats_json")?,
     };
-    let progress = if total > 0 {
-        done as f64 / total as f64
-    } else {
-        0.0
+    let count = |n: i32| u32::try_from(n).unwrap_or(0);
+    let tasks = TaskCount {
+        done: count(done),
+        total: count(total),
     };
-    Ok((row, progress))
+    Ok((row, tasks))
 }
 
 impl Queue {
@@ -147,7 +165,7 @@ impl Queue {
     }
 
     /// A job's row and its progress (tasks done over tasks).
-    pub async fn job(&self, id: i64) -> Result<Option<(JobRow, f64)>, FarmError> {
+    pub async fn job(&self, id: i64) -> Result<Option<(JobRow, TaskCount)>, FarmError> {
         let sql = format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = $1");
         let row = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(id)
@@ -163,7 +181,7 @@ impl Queue {
         user: i64,
         admin: bool,
         limit: i64,
-    ) -> Result<Vec<(JobRow, f64)>, FarmError> {
+    ) -> Result<Vec<(JobRow, TaskCount)>, FarmError> {
         let sql = format!(
             "SELECT {JOB_COLUMNS} FROM jobs WHERE $2 OR user_id = $1 OR public
               ORDER BY created DESC, id DESC LIMIT $3"

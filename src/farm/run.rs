@@ -67,6 +67,7 @@ pub fn serve(cfg: FarmServeConfig) -> anyhow::Result<()> {
             catalog: Arc::new(catalog),
             limits: cfg.limits.clone(),
             body_timeout: cfg.body_timeout,
+            previews: Default::default(),
         });
         let listener = tokio::net::TcpListener::bind(&cfg.addr)
             .await
