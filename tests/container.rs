@@ -10,6 +10,8 @@
 //! - examples/compose.yaml brought up as a user would (PostgreSQL, one API, two workers): a
 //!   48-pass ppm job spread over both workers, the EXR the CLI's bytes.
 
+mod common;
+
 use std::process::Command;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
@@ -17,8 +19,9 @@ use std::time::{Duration, Instant};
 use reqwest::blocking::Client;
 use serde_json::{Value, json};
 
+use common::render_exr_by_cli;
+
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
-const BIN: &str = env!("CARGO_BIN_EXE_photonbox");
 const IMAGE: &str = "photonbox:container-test";
 const BUILD_ARGS: [(&str, &str); 3] = [
     ("BUILD_IMAGE", "photonbox/rust:bookworm"),
@@ -150,25 +153,6 @@ fn await_exr(base: &str, token: &str, id: i64) -> Vec<u8> {
     exr
 }
 
-/// `photonbox render` of the same job: its EXR's bytes.
-fn cli_exr(params: &Value) -> Vec<u8> {
-    let dir = tempfile::tempdir().unwrap();
-    let exr = dir.path().join("cli.exr");
-    let mut cmd = Command::new(BIN);
-    cmd.arg("render")
-        .arg(format!("{ROOT}/scenes/cornell_mirror_glass.json"))
-        .arg("-o")
-        .arg(dir.path().join("cli.png"))
-        .arg("--exr")
-        .arg(&exr);
-    for (k, v) in params.as_object().unwrap() {
-        let v = v.as_str().map_or(v.to_string(), str::to_string);
-        cmd.arg(format!("--{}", k.replace('_', "-"))).arg(v);
-    }
-    run(&mut cmd);
-    std::fs::read(exr).unwrap()
-}
-
 #[test]
 fn the_image_runs_healthy_as_its_own_user_and_its_volume_outlives_the_container() {
     let image = image();
@@ -232,7 +216,7 @@ fn the_image_runs_healthy_as_its_own_user_and_its_volume_outlives_the_container(
     let exr = await_exr(&base, &token, id);
     assert_eq!(
         exr,
-        cli_exr(&params),
+        render_exr_by_cli(&params),
         "the container's EXR is not the CLI's"
     );
     let (status, png) = get(&base, &token, &format!("/api/jobs/{id}/image.png"));
@@ -310,7 +294,11 @@ fn the_compose_farm_spreads_a_job_over_both_workers_to_the_cli_s_bytes() {
                         "iterations": 48, "width": 40, "height": 30, "seed": 11});
     let id = submit(&base, &token, &params);
     let exr = await_exr(&base, &token, id);
-    assert_eq!(exr, cli_exr(&params), "the farm's EXR is not the CLI's");
+    assert_eq!(
+        exr,
+        render_exr_by_cli(&params),
+        "the farm's EXR is not the CLI's"
+    );
 
     let workers = get_json(&base, &token, "/api/workers")["workers"].clone();
     let done: Vec<(String, i64)> = workers

@@ -211,3 +211,33 @@ pub fn proptest_config(default: u32) -> proptest::prelude::ProptestConfig {
         .unwrap_or(default);
     proptest::prelude::ProptestConfig::with_cases(cases)
 }
+
+/// The job of `params` (the server's parameter names, as `--flags`) on the scene the
+/// server and farm tests submit, by `photonbox render` on one thread: its EXR's bytes, the
+/// ones every front end must serve for the same job.
+pub fn render_exr_by_cli(params: &serde_json::Value) -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("one.exr");
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_photonbox"));
+    cmd.arg("render")
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/scenes/cornell_mirror_glass.json"
+        ))
+        .arg("-o")
+        .arg(dir.path().join("one.png"))
+        .arg("--exr")
+        .arg(&exr)
+        .args(["--threads", "1"]);
+    for (k, v) in params.as_object().unwrap() {
+        let v = v.as_str().map_or(v.to_string(), str::to_string);
+        cmd.arg(format!("--{}", k.replace('_', "-"))).arg(v);
+    }
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::read(&exr).unwrap()
+}

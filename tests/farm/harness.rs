@@ -47,34 +47,8 @@ pub fn slow_one_box_exr() -> Vec<u8> {
         .clone()
 }
 
-/// The job of `params` (the server's names) by `photonbox render` on one box, of the
-/// scene the tests submit: its EXR's bytes.
-pub fn render_one_box(params: &Value) -> Vec<u8> {
-    let dir = tempfile::tempdir().unwrap();
-    let exr = dir.path().join("one.exr");
-    let mut cmd = Command::new(BIN);
-    cmd.arg("render")
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/scenes/cornell_mirror_glass.json"
-        ))
-        .arg("-o")
-        .arg(dir.path().join("one.png"))
-        .arg("--exr")
-        .arg(&exr)
-        .args(["--threads", "1"]);
-    for (k, v) in params.as_object().unwrap() {
-        let v = v.as_str().map_or(v.to_string(), str::to_string);
-        cmd.arg(format!("--{}", k.replace('_', "-"))).arg(v);
-    }
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    std::fs::read(&exr).unwrap()
-}
+/// The job of `params` by `photonbox render` on one box (tests/common).
+pub use crate::common::render_exr_by_cli as render_one_box;
 
 /// A farm process, killed when dropped.
 pub struct Proc(pub Child);
