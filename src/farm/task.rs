@@ -60,41 +60,15 @@ pub fn split(spec: &RenderSpec, work: f64, height: u32, memory_bytes: u64) -> Ve
     let per_pass = work / passes as f64;
     let by_work = (TASK_WORK / per_pass.max(1.0)).ceil() as u32;
     let per_task = by_work.clamp(1, passes.div_ceil(MIN_TASKS).max(1));
-    let mut first = 1;
-    piece_sizes(passes, per_task)
-        .into_iter()
-        .map(|count| {
-            let unit = Unit::Passes { first, count };
-            first += count;
-            task(unit)
+    (1..=passes)
+        .step_by(per_task as usize)
+        .map(|first| {
+            task(Unit::Passes {
+                first,
+                count: per_task.min(passes - first + 1),
+            })
         })
         .collect()
-}
-
-/// The sizes, in passes, of the pieces of a job of `passes` passes: `per_task` each, but
-/// for a tail that halves down to single passes, each size twice (for `per_task` 6: ...,
-/// 6, 6, 4, 4, 2, 2, 1, 1). Whichever worker takes the last piece then ends about a pass
-/// after the others rather than up to a whole piece after them: the tail of guided
-/// self-scheduling (Polychronopoulos and Kuck, "Guided self-scheduling", IEEE Trans.
-/// Computers, 1987), here fixed ahead since the pieces are queued at submission.
-fn piece_sizes(passes: u32, per_task: u32) -> Vec<u32> {
-    let mut tail = Vec::new();
-    let mut size = 1;
-    while size < per_task {
-        tail.extend([size, size]);
-        size *= 2;
-    }
-    let tail_passes: u32 = tail.iter().sum();
-    let head = passes.saturating_sub(tail_passes);
-    if head == 0 {
-        return vec![1; passes as usize];
-    }
-    let mut sizes: Vec<u32> = (0..head)
-        .step_by(per_task as usize)
-        .map(|at| per_task.min(head - at))
-        .collect();
-    sizes.extend(tail.iter().rev());
-    sizes
 }
 
 /// What a worker keeps between the tasks of one job.
@@ -305,23 +279,8 @@ mod tests {
 
     #[test]
     fn small_passes_still_spread_and_large_ones_go_one_by_one() {
-        // 48 passes: pieces of 3, the last ones of 2, 2, 1, 1.
-        let tasks = split(&ppm(48), 48e4, 30, 0);
-        let sizes: Vec<u32> = pieces(&tasks).iter().map(|p| p.1).collect();
-        assert_eq!(sizes[..14], [3; 14]);
-        assert_eq!(sizes[14..], [2, 2, 1, 1]);
+        assert_eq!(split(&ppm(48), 48e4, 30, 0).len(), 16);
         assert_eq!(split(&ppm(48), 48e9, 30, 0).len(), 48);
-    }
-
-    #[test]
-    fn the_last_pieces_halve_down_to_one_pass() {
-        let sizes = piece_sizes(100, 6);
-        assert_eq!(sizes[..14], [6; 14]);
-        assert_eq!(sizes[14..], [2, 4, 4, 2, 2, 1, 1]);
-        assert_eq!(piece_sizes(7, 2), [2, 2, 1, 1, 1]);
-        assert_eq!(piece_sizes(16, 1), [1; 16]);
-        // Too few passes for the tail: one by one.
-        assert_eq!(piece_sizes(5, 4), [1; 5]);
     }
 
     #[test]
