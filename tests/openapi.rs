@@ -16,7 +16,7 @@ mod harness;
 use harness::{Server, client, metrics};
 
 /// The schemathesis command line: `$PHOTONBOX_SCHEMATHESIS`, else `st` on the PATH
-/// (tests/run.sh installs it in a virtual environment and sets the variable).
+/// (.ci/run installs it in a virtual environment and sets the variable).
 fn schemathesis() -> PathBuf {
     std::env::var_os("PHOTONBOX_SCHEMATHESIS")
         .map(PathBuf::from)
@@ -44,7 +44,7 @@ fn schemathesis_finds_no_server_error_and_no_answer_outside_the_document() {
         .output()
         .unwrap_or_else(|e| {
             panic!(
-                "running {}: {e}: schemathesis (PyPI) is needed; tests/run.sh installs it",
+                "running {}: {e}: schemathesis (PyPI) is needed; .ci/run installs it",
                 schemathesis().display()
             )
         });

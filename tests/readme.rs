@@ -1,7 +1,7 @@
 //! The README's two set-up commands are the ones a newcomer can run on a fresh machine:
 //! `cargo run --release -- serve` must reach the server binary (with a second binary in the
 //! package, perf-tables, plain `cargo run` needs `default-run`: without it, cargo stops with
-//! "could not determine which binary to run"), `.ci/run` runs the README's test command, and
+//! "could not determine which binary to run"), the test command is `.ci/run` (what CI runs), and
 //! that command installs what the browser tests need and runs `cargo test`.
 
 use std::path::Path;
@@ -33,7 +33,7 @@ fn setup_commands() -> Vec<String> {
 fn readme_gives_exactly_the_server_and_test_commands() {
     assert_eq!(
         setup_commands(),
-        ["cargo run --release -- serve", "tests/run.sh"],
+        ["cargo run --release -- serve", ".ci/run"],
         "README.md's set-up section"
     );
 }
@@ -77,31 +77,35 @@ fn cargo_run_without_bin_runs_the_server_binary() {
 
 #[test]
 fn ci_runs_the_readme_test_command() {
+    // CI runs .ci/run: the README's test command must be that very script.
     let commands = setup_commands();
     let test_command = commands.last().expect("README.md gives a test command");
-    let ci = std::fs::read_to_string(Path::new(ROOT).join(".ci/run")).unwrap();
+    assert_eq!(test_command, ".ci/run", "CI runs the README's test command");
+    let mode = std::fs::metadata(Path::new(ROOT).join(".ci/run"))
+        .unwrap()
+        .permissions();
     assert!(
-        ci.lines().any(|l| l.trim() == test_command),
-        ".ci/run runs the README's test command `{test_command}`"
+        std::os::unix::fs::PermissionsExt::mode(&mode) & 0o111 != 0,
+        ".ci/run is executable"
     );
 }
 
 #[test]
 fn the_test_command_installs_the_browsers_and_runs_every_test() {
-    let script = std::fs::read_to_string(Path::new(ROOT).join("tests/run.sh")).unwrap();
+    let script = std::fs::read_to_string(Path::new(ROOT).join(".ci/run")).unwrap();
     for needed in [
         "chromium-driver",
         "firefox-esr",
         "geckodriver",
         "apt_get install",
     ] {
-        assert!(script.contains(needed), "tests/run.sh installs {needed}");
+        assert!(script.contains(needed), ".ci/run installs {needed}");
     }
     assert!(
         script
             .lines()
             .any(|l| l.trim().starts_with("cargo test --no-fail-fast")),
-        "tests/run.sh runs cargo test over every test binary"
+        ".ci/run runs cargo test over every test binary"
     );
 }
 

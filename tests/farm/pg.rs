@@ -1,4 +1,4 @@
-//! A real PostgreSQL for the farm's tests and benchmark: Debian's server (tests/run.sh
+//! A real PostgreSQL for the farm's tests and benchmark: Debian's server (.ci/run
 //! installs it when missing), a cluster made by initdb in a temporary directory, listening
 //! on a free loopback port, one database per test. Run as root (CI), the server runs as the
 //! `postgres` user, which PostgreSQL requires.
@@ -60,7 +60,7 @@ fn bin_dir() -> PathBuf {
         return d.into();
     }
     let mut versions: Vec<(u32, PathBuf)> = std::fs::read_dir("/usr/lib/postgresql")
-        .expect("PostgreSQL is not installed (tests/run.sh installs Debian's `postgresql`)")
+        .expect("PostgreSQL is not installed (.ci/run installs Debian's `postgresql`)")
         .filter_map(|e| {
             let e = e.ok()?;
             let v = e.file_name().to_str()?.parse().ok()?;
