@@ -8,7 +8,10 @@
 //!
 //!     cargo build --release && cargo run --release --example farm_passes --
 //!         [--workers 1,2] [--passes 32] [--photons 50000] [--width 128] [--height 96]
-//!         [--scene cornell_mirror_glass] [--bin target/release/photonbox]
+//!         [--scene cornell_mirror_glass] [--bin target/release/photonbox] [--radius R]
+//!
+//! `--radius`: the job's initial ppm radius, given (then no piece traces pass 1's photons
+//! for it: what a second worker's first piece otherwise adds).
 //!
 //! Prints the seconds and passes per second per worker count, the speed-up over one
 //! worker, and whether every run gave the same EXR bytes.
@@ -33,6 +36,7 @@ struct Args {
     height: u32,
     scene: String,
     bin: PathBuf,
+    radius: Option<f32>,
 }
 
 fn parse_args() -> anyhow::Result<Args> {
@@ -50,6 +54,7 @@ fn parse_args() -> anyhow::Result<Args> {
         height: 96,
         scene: "cornell_mirror_glass".into(),
         bin,
+        radius: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -67,6 +72,7 @@ fn parse_args() -> anyhow::Result<Args> {
             "--height" => a.height = value.parse().context("--height")?,
             "--scene" => a.scene = value,
             "--bin" => a.bin = value.into(),
+            "--radius" => a.radius = Some(value.parse().context("--radius")?),
             _ => bail!("unknown flag {flag}"),
         }
     }
@@ -142,8 +148,11 @@ fn run(a: &Args, cluster: &pg::Cluster, workers: usize) -> anyhow::Result<(f64, 
         }
         std::thread::sleep(Duration::from_millis(20));
     }
-    let params = json!({"integrator": "ppm", "photons": a.photons, "caustic_photons": a.photons,
-                        "iterations": a.passes, "width": a.width, "height": a.height});
+    let mut params = json!({"integrator": "ppm", "photons": a.photons, "caustic_photons": a.photons,
+                            "iterations": a.passes, "width": a.width, "height": a.height});
+    if let Some(r) = a.radius {
+        params["radius"] = json!(r);
+    }
     let body = json!({"scene_name": a.scene, "params": params});
     let t0 = Instant::now();
     let r: Value = http

@@ -18,14 +18,18 @@ use serde_json::{Value, json};
 
 use super::preview::{Encoding, Previews};
 use super::task::split;
-use super::{FarmError, Queue, TaskCount};
+use super::{FarmError, FarmJob, Queue, epoch_seconds};
+use crate::server::api::{scene_json, scene_list};
 use crate::server::auth::{User, bearer, token_hash};
 use crate::server::error::ApiError;
 use crate::server::jobs::JobSpec;
 use crate::server::needs::Limits;
 use crate::server::scenes::SceneCatalog;
+use crate::server::state::Snapshot;
 use crate::server::store::{JobRow, Status};
 use crate::server::submit::{Admitted, admit, read_body};
+use crate::server::views::{JobList, JobView, SceneList};
+use crate::server::web;
 
 /// One API instance's state.
 pub struct FarmApi {
@@ -38,15 +42,26 @@ pub struct FarmApi {
 
 type ApiRef = Arc<FarmApi>;
 
+/// The one-box server's routes that the farm has, with the same paths and shapes (the
+/// gallery among them), and the farm's own (`/api/workers`).
 pub fn router(api: ApiRef) -> Router {
     let body_limit = api.limits.body_bytes;
+    let document = crate::server::api::document(&api.catalog);
     Router::new()
         .route("/api/jobs", get(list).post(submit))
-        .route("/api/jobs/{id}", get(job).delete(cancel))
+        .route("/api/jobs/{id}", get(job).delete(delete))
         .route("/api/jobs/{id}/events", get(super::events::job_events))
         .route("/api/jobs/{id}/{file}", get(image))
+        .route("/api/scenes", get(scenes))
+        .route("/api/scenes/{name}", get(scene))
         .route("/api/workers", get(workers))
         .route("/api/me", get(me))
+        .route(
+            "/api/openapi.json",
+            get(move || std::future::ready(Json(document.clone()))),
+        )
+        .route("/", get(web::index))
+        .route("/web/{file}", get(web::web_file))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .fallback(|| async { ApiError::not_found("route") })
@@ -73,14 +88,34 @@ pub(super) async fn user(api: &FarmApi, headers: &HeaderMap) -> Result<User, Api
 }
 
 /// A job the user may see (others' private jobs do not exist for them: 404).
-pub(super) async fn visible_job(
-    api: &FarmApi,
-    user: &User,
-    id: i64,
-) -> Result<(JobRow, TaskCount), ApiError> {
+pub(super) async fn visible_job(api: &FarmApi, user: &User, id: i64) -> Result<FarmJob, ApiError> {
     match api.queue.job(id).await.map_err(store_error)? {
-        Some((row, p)) if user.admin || row.user_id == user.id || row.public => Ok((row, p)),
+        Some(j) if user.admin || j.row.user_id == user.id || j.row.public => Ok(j),
         _ => Err(ApiError::not_found("job")),
+    }
+}
+
+/// A farm job's state as the one-box server's live snapshot describes a job: progress in
+/// tasks done, the time left from their pace so far, and a preview for each task done
+/// (`preview.rs`; the end is the final image).
+pub(super) fn snapshot(job: &FarmJob, now: f64) -> Snapshot {
+    let FarmJob { row, tasks, .. } = job;
+    let done = row.status == Status::Done;
+    let running = row.status == Status::Running;
+    let eta_seconds = match (running, row.started) {
+        (true, Some(started)) if tasks.done > 0 && tasks.total > tasks.done => {
+            let per_task = (now - started).max(0.0) / tasks.done as f64;
+            Some(per_task * (tasks.total - tasks.done) as f64)
+        }
+        _ => None,
+    };
+    Snapshot {
+        status: row.status,
+        progress: if done { 1.0 } else { tasks.progress() },
+        phase: running.then_some("passes"),
+        eta_seconds,
+        previews: tasks.done.max(done as u32) as u64,
+        error: row.error.clone(),
     }
 }
 
@@ -137,66 +172,76 @@ async fn job(
     State(api): State<ApiRef>,
     headers: HeaderMap,
     Path(id): Path<String>,
-) -> Result<Json<Value>, ApiError> {
+) -> Result<Json<JobView>, ApiError> {
     let user = user(&api, &headers).await?;
-    let (row, tasks) = visible_job(&api, &user, job_id(&id)?).await?;
-    Ok(Json(job_json(&row, tasks, &user)))
+    let job = visible_job(&api, &user, job_id(&id)?).await?;
+    Ok(Json(job_view(&job, &user, epoch_seconds())))
 }
 
 /// The jobs the user may see, newest first (at most [`LIST_MAX`]).
-async fn list(State(api): State<ApiRef>, headers: HeaderMap) -> Result<Json<Value>, ApiError> {
+async fn list(State(api): State<ApiRef>, headers: HeaderMap) -> Result<Json<JobList>, ApiError> {
     let user = user(&api, &headers).await?;
     let rows = api
         .queue
         .visible_jobs(user.id, user.admin, LIST_MAX)
         .await
         .map_err(store_error)?;
-    let jobs: Vec<Value> = rows.iter().map(|(r, p)| job_json(r, *p, &user)).collect();
-    Ok(Json(json!({ "jobs": jobs })))
+    let now = epoch_seconds();
+    let jobs = rows.iter().map(|j| job_view(j, &user, now)).collect();
+    Ok(Json(JobList { jobs }))
 }
 
 /// The most jobs one listing shows.
 const LIST_MAX: i64 = 500;
 
-/// A job as `GET /api/jobs/{id}` shows it (the one-box server's fields that the farm has).
-fn job_json(row: &JobRow, tasks: TaskCount, user: &User) -> Value {
-    let raw = |t: &Option<String>| {
-        t.as_deref()
-            .and_then(|t| serde_json::from_str::<Value>(t).ok())
-    };
-    json!({
-        "id": row.id,
-        "mine": row.user_id == user.id,
-        "public": row.public,
-        "scene": row.scene_name,
-        "params": serde_json::from_str::<Value>(&row.params_json).unwrap_or(Value::Null),
-        "status": row.status.as_str(),
-        "progress": if row.status == Status::Done { 1.0 } else { tasks.progress() },
-        "created": row.created,
-        "started": row.started,
-        "finished": row.finished,
-        "error": row.error,
-        "stats": raw(&row.stats_json),
-    })
+/// A job as `GET /api/jobs/{id}` shows it: the one-box server's view, field for field.
+fn job_view(job: &FarmJob, user: &User, now: f64) -> JobView {
+    let mine = job.row.user_id == user.id;
+    JobView::of(&job.row, &snapshot(job, now), job.owner.clone(), mine)
 }
 
-async fn cancel(
+/// Cancel a queued or running job; delete a finished one, with its tasks and images (as
+/// the one-box server does).
+async fn delete(
     State(api): State<ApiRef>,
     headers: HeaderMap,
     Path(id): Path<String>,
-) -> Result<Json<Value>, ApiError> {
+) -> Result<Response, ApiError> {
     let user = user(&api, &headers).await?;
-    let (row, _) = visible_job(&api, &user, job_id(&id)?).await?;
+    let row = visible_job(&api, &user, job_id(&id)?).await?.row;
     if !(user.admin || row.user_id == user.id) {
         return Err(ApiError::new(
             StatusCode::FORBIDDEN,
             None,
-            "only its owner or an admin may cancel a job",
+            "this public job is read-only for you",
         ));
     }
+    if row.status.is_final() {
+        if api.queue.delete_job(row.id).await.map_err(store_error)? {
+            return Ok(StatusCode::NO_CONTENT.into_response());
+        }
+        return Err(ApiError::not_found("job"));
+    }
     api.queue.cancel_job(row.id).await.map_err(store_error)?;
-    let (row, _) = visible_job(&api, &user, row.id).await?;
-    Ok(Json(json!({"id": row.id, "status": row.status.as_str()})))
+    let row = visible_job(&api, &user, row.id).await?.row;
+    Ok(Json(json!({"id": row.id, "status": row.status.as_str()})).into_response())
+}
+
+async fn scenes(
+    State(api): State<ApiRef>,
+    headers: HeaderMap,
+) -> Result<Json<SceneList>, ApiError> {
+    user(&api, &headers).await?;
+    Ok(Json(scene_list(&api.catalog)))
+}
+
+async fn scene(
+    State(api): State<ApiRef>,
+    headers: HeaderMap,
+    Path(name): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    user(&api, &headers).await?;
+    scene_json(&api.catalog, &name)
 }
 
 /// The job's image: the final one, or while it runs a preview of its tasks done so far
@@ -212,7 +257,7 @@ async fn image(
         "image.png" => (Encoding::Png, "image/png"),
         _ => return Err(ApiError::not_found("file")),
     };
-    let (row, _) = visible_job(&api, &user, job_id(&id)?).await?;
+    let row = visible_job(&api, &user, job_id(&id)?).await?.row;
     let exr = encoding == Encoding::Exr;
     if row.status.is_final() {
         let bytes = api
@@ -280,4 +325,54 @@ async fn healthz(State(api): State<ApiRef>) -> Response {
 
 async fn metrics(State(api): State<ApiRef>) -> Response {
     super::probe::metrics(&api.queue).await
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::farm::TaskCount;
+
+    fn job(status: Status, started: Option<f64>, done: u32, total: u32) -> FarmJob {
+        let row = JobRow {
+            id: 1,
+            user_id: 1,
+            public: false,
+            status,
+            scene_name: None,
+            scene_bytes: 0,
+            result_bytes: 0,
+            result_estimate: 0,
+            params_json: "{}".into(),
+            size: None,
+            memory_bytes: 0,
+            created: 0.0,
+            started,
+            finished: None,
+            error: None,
+            stats_json: None,
+        };
+        FarmJob {
+            row,
+            tasks: TaskCount { done, total },
+            owner: "ann".into(),
+        }
+    }
+
+    /// The time left goes by the pace of the tasks done so far; none before a task is
+    /// done or once the job is not running; a done job is whole and shows its image.
+    #[test]
+    fn a_running_job_s_eta_follows_its_tasks_pace() {
+        let s = snapshot(&job(Status::Running, Some(100.0), 2, 10), 110.0);
+        assert_eq!(
+            (s.progress, s.eta_seconds, s.previews),
+            (0.2, Some(40.0), 2)
+        );
+        assert_eq!(s.phase, Some("passes"));
+        let s = snapshot(&job(Status::Running, Some(100.0), 0, 10), 110.0);
+        assert_eq!(s.eta_seconds, None);
+        let s = snapshot(&job(Status::Queued, None, 0, 10), 110.0);
+        assert_eq!((s.eta_seconds, s.phase), (None, None));
+        let s = snapshot(&job(Status::Done, Some(100.0), 10, 10), 120.0);
+        assert_eq!((s.progress, s.eta_seconds, s.previews), (1.0, None, 10));
+    }
 }

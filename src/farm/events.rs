@@ -13,11 +13,11 @@ use axum::http::HeaderMap;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use futures_util::stream::{self, Stream, StreamExt};
 
-use super::api::{FarmApi, job_id, user, visible_job};
+use super::api::{FarmApi, job_id, snapshot, user, visible_job};
+use super::epoch_seconds;
 use crate::server::error::ApiError;
 use crate::server::events::diff_events;
 use crate::server::state::Snapshot;
-use crate::server::store::Status;
 
 /// How often a stream reads its job.
 const EVERY: Duration = Duration::from_millis(250);
@@ -28,8 +28,7 @@ pub async fn job_events(
     Path(id): Path<String>,
 ) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
     let user = user(&api, &headers).await?;
-    let (row, _) = visible_job(&api, &user, job_id(&id)?).await?;
-    let id = row.id;
+    let id = visible_job(&api, &user, job_id(&id)?).await?.row.id;
     struct St {
         api: Arc<FarmApi>,
         last: Option<Snapshot>,
@@ -46,17 +45,8 @@ pub async fn job_events(
         }
         loop {
             // A job deleted, or a store out of reach, ends the stream.
-            let (row, tasks) = st.api.queue.job(id).await.ok().flatten()?;
-            let done = row.status == Status::Done;
-            let snap = Snapshot {
-                status: row.status,
-                progress: if done { 1.0 } else { tasks.progress() },
-                phase: (row.status == Status::Running).then_some("passes"),
-                eta_seconds: None,
-                // A task done is a new preview (`preview.rs`), and the end the final image.
-                previews: tasks.done.max(done as u32) as u64,
-                error: row.error.clone(),
-            };
+            let job = st.api.queue.job(id).await.ok().flatten()?;
+            let snap = snapshot(&job, epoch_seconds());
             let evs = diff_events(st.last.as_ref(), &snap);
             if !evs.is_empty() {
                 st.ended = snap.status.is_final();

@@ -23,6 +23,18 @@ impl Queue {
         self.end_job(id, "cancelled", None).await
     }
 
+    /// Delete finished job `id` with its tasks, results and images; false if it is not
+    /// finished (or not there).
+    pub async fn delete_job(&self, id: i64) -> Result<bool, FarmError> {
+        let deleted = sqlx::query(
+            "DELETE FROM jobs WHERE id = $1 AND status IN ('done', 'failed', 'cancelled')",
+        )
+        .bind(id)
+        .execute(self.pool())
+        .await?;
+        Ok(deleted.rows_affected() == 1)
+    }
+
     /// Fail job `id` with `reason` (a task at its failure limit).
     pub async fn fail_job(&self, id: i64, reason: &str) -> Result<bool, FarmError> {
         self.end_job(id, "failed", Some(reason)).await

@@ -27,7 +27,8 @@ pub struct JobImages {
 const JOB_COLUMNS: &str = "id, user_id, public, status, scene_name,
     COALESCE(octet_length(scene_json), 0)::BIGINT AS scene_bytes, params_json, memory_bytes,
     result_estimate, width, height, created, started, finished, error, stats_json,
-    tasks_done, tasks_total";
+    tasks_done, tasks_total,
+    COALESCE((SELECT name FROM users WHERE users.id = jobs.user_id), '') AS owner";
 
 /// A job's tasks: how many are done of how many.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -47,7 +48,15 @@ impl TaskCount {
     }
 }
 
-fn job_row(r: &sqlx::postgres::PgRow) -> Result<(JobRow, TaskCount), sqlx::Error> {
+/// A job as the API instances show it: its row, its tasks' progress and its owner's name.
+#[derive(Clone, Debug)]
+pub struct FarmJob {
+    pub row: JobRow,
+    pub tasks: TaskCount,
+    pub owner: String,
+}
+
+fn job_row(r: &sqlx::postgres::PgRow) -> Result<FarmJob, sqlx::Error> {
     let side = |c: &str| -> Result<Option<u32>, sqlx::Error> {
         Ok(r.try_get::<Option<i32>, _>(c)?
             .and_then(|v| u32::try_from(v).ok()))
@@ -77,7 +86,11 @@ fn job_row(r: &sqlx::postgres::PgRow) -> Result<(JobRow, TaskCount), sqlx::Error
         done: count(done),
         total: count(total),
     };
-    Ok((row, tasks))
+    Ok(FarmJob {
+        row,
+        tasks,
+        owner: r.try_get("owner")?,
+    })
 }
 
 impl Queue {
@@ -164,8 +177,8 @@ impl Queue {
         Ok(id)
     }
 
-    /// A job's row and its progress (tasks done over tasks).
-    pub async fn job(&self, id: i64) -> Result<Option<(JobRow, TaskCount)>, FarmError> {
+    /// A job's row, its progress (tasks done over tasks) and its owner.
+    pub async fn job(&self, id: i64) -> Result<Option<FarmJob>, FarmError> {
         let sql = format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = $1");
         let row = sqlx::query(sqlx::AssertSqlSafe(sql))
             .bind(id)
@@ -181,7 +194,7 @@ impl Queue {
         user: i64,
         admin: bool,
         limit: i64,
-    ) -> Result<Vec<(JobRow, TaskCount)>, FarmError> {
+    ) -> Result<Vec<FarmJob>, FarmError> {
         let sql = format!(
             "SELECT {JOB_COLUMNS} FROM jobs WHERE $2 OR user_id = $1 OR public
               ORDER BY created DESC, id DESC LIMIT $3"
@@ -210,13 +223,16 @@ impl Queue {
     }
 
     /// End a running job with its images and stats (the worker that completed its last
-    /// task). False if the job had ended meanwhile (cancelled).
+    /// task), and drop its tasks' results in the same transaction: merged, they are of no
+    /// further use, and a finished job keeps only its images (a ppm task's sums are 48
+    /// bytes a pixel). False if the job had ended meanwhile (cancelled).
     pub async fn finish_job(
         &self,
         id: i64,
         images: &JobImages,
         stats_json: &str,
     ) -> Result<bool, FarmError> {
+        let mut tx = self.pool().begin().await?;
         let done = sqlx::query(
             "UPDATE jobs SET status = 'done', finished = $2, result_exr = $3, result_png = $4,
                     stats_json = $5
@@ -227,9 +243,17 @@ impl Queue {
         .bind(&images.exr)
         .bind(&images.png)
         .bind(stats_json)
-        .execute(self.pool())
+        .execute(&mut *tx)
         .await?;
-        Ok(done.rows_affected() == 1)
+        if done.rows_affected() != 1 {
+            return Ok(false);
+        }
+        sqlx::query("UPDATE tasks SET result = NULL WHERE job_id = $1")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        tx.commit().await?;
+        Ok(true)
     }
 
     /// A finished job's image (`exr` or `png`).

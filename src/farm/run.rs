@@ -53,7 +53,8 @@ pub fn serve(cfg: FarmServeConfig) -> anyhow::Result<()> {
         let queue = Queue::connect(&cfg.store, 16)
             .await
             .context("connecting to the store")?;
-        if let Some(token) = first_admin(&queue).await? {
+        let admin_token = first_admin(&queue).await?;
+        if let Some(token) = &admin_token {
             println!("photonbox: admin token (shown once): {token}");
         }
         let scenes = cfg
@@ -74,6 +75,12 @@ pub fn serve(cfg: FarmServeConfig) -> anyhow::Result<()> {
             .with_context(|| format!("listening on {}", cfg.addr))?;
         let addr: SocketAddr = listener.local_addr()?;
         println!("photonbox: listening on http://{addr} (farm store)");
+        match &admin_token {
+            Some(t) => {
+                println!("photonbox: gallery (signed in as admin): http://{addr}/?token={t}")
+            }
+            None => println!("photonbox: gallery: http://{addr}/"),
+        }
         let _ = std::io::stdout().flush();
         let stop = on_signal();
         let worker = cfg

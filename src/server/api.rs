@@ -16,14 +16,15 @@ use utoipa_axum::routes;
 use super::auth::User;
 use super::error::ApiError;
 use super::extract::PathName;
+use super::scenes::SceneCatalog;
 use super::state::Snapshot;
 use super::store::JobRow;
 use super::views::{AuthErrors, ErrorBody, Me, SceneEntry, SceneList};
 use super::{AppRef, events, job_routes, metrics, openapi, submit, web};
 
-pub fn router(app: AppRef) -> Router {
-    let body_limit = app.config.limits.body_bytes;
-    let (router, api) = OpenApiRouter::with_openapi(openapi::base())
+/// The API's routes, each with its OpenAPI entry.
+fn api_routes() -> OpenApiRouter<AppRef> {
+    OpenApiRouter::with_openapi(openapi::base())
         .routes(routes!(job_routes::list_jobs, submit::submit_job))
         .routes(routes!(job_routes::get_job, job_routes::delete_job))
         .routes(routes!(job_routes::image))
@@ -33,7 +34,17 @@ pub fn router(app: AppRef) -> Router {
         .routes(routes!(me))
         .routes(routes!(healthz))
         .routes(routes!(metrics_text))
-        .split_for_parts();
+}
+
+/// `GET /api/openapi.json`: the API's document, completed for `catalog`'s scenes (the
+/// farm's API instances serve it too: the gallery reads the spec's defaults from it).
+pub(crate) fn document(catalog: &SceneCatalog) -> utoipa::openapi::OpenApi {
+    openapi::complete(api_routes().split_for_parts().1, &catalog.names())
+}
+
+pub fn router(app: AppRef) -> Router {
+    let body_limit = app.config.limits.body_bytes;
+    let (router, api) = api_routes().split_for_parts();
     let document = openapi::complete(api, &app.catalog.names());
     router
         .route(
@@ -79,13 +90,29 @@ async fn me(user: User) -> Json<Me> {
 #[utoipa::path(get, path = "/api/scenes", tag = "scenes", security(("bearer" = [])),
     responses((status = 200, description = "Every built-in scene", body = SceneList), AuthErrors))]
 async fn list_scenes(State(app): State<AppRef>, _user: User) -> Json<SceneList> {
-    let scenes = app
-        .catalog
+    Json(scene_list(&app.catalog))
+}
+
+/// The built-in scenes, as `GET /api/scenes` lists them (on the farm too).
+pub(crate) fn scene_list(catalog: &SceneCatalog) -> SceneList {
+    let scenes = catalog
         .list()
         .into_iter()
         .map(|(name, description)| SceneEntry { name, description })
         .collect();
-    Json(SceneList { scenes })
+    SceneList { scenes }
+}
+
+/// A built-in scene's JSON, as `GET /api/scenes/{name}` gives it (on the farm too).
+pub(crate) fn scene_json(
+    catalog: &SceneCatalog,
+    name: &str,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    catalog
+        .json(name)
+        .cloned()
+        .map(Json)
+        .ok_or_else(|| ApiError::not_found("scene"))
 }
 
 /// A built-in scene's JSON (the scene format: README.md, "Scenes").
@@ -101,11 +128,7 @@ async fn get_scene(
     _user: User,
     PathName(name): PathName,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    app.catalog
-        .json(&name)
-        .cloned()
-        .map(Json)
-        .ok_or_else(|| ApiError::not_found("scene"))
+    scene_json(&app.catalog, &name)
 }
 
 /// Whether the server answers.

@@ -3,7 +3,7 @@
 //!
 //! The server depends on the engine (`crate::render`), never the reverse.
 
-mod api;
+pub(crate) mod api;
 pub(crate) mod auth;
 mod cache;
 pub(crate) mod error;
@@ -24,7 +24,7 @@ pub(crate) mod state;
 pub(crate) mod store;
 pub(crate) mod submit;
 pub(crate) mod views;
-mod web;
+pub(crate) mod web;
 
 use std::collections::HashMap;
 use std::io::Write;

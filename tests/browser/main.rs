@@ -14,7 +14,8 @@
 //!
 //! Layout: `driver.rs` (the two browsers, their WebDriver servers and sessions), `page.rs`
 //! (waiting, typing, screenshots, checks of the page), `one_user.rs` (submit, watch, compare,
-//! cancel, a phone's width), `users.rs` (who sees which job, signing out).
+//! cancel, a phone's width), `users.rs` (who sees which job, signing out), `farm.rs` (the
+//! gallery on a farm: an API instance and a worker on PostgreSQL).
 
 /// The tests `$body::chromium` and `$body::firefox` for an `async fn $body(Browser)`.
 macro_rules! in_each_browser {
@@ -39,7 +40,12 @@ macro_rules! in_each_browser {
 #[allow(dead_code)] // the browser tests use the server half of the harness only
 mod harness;
 
+#[path = "../farm/pg.rs"]
+#[allow(dead_code)] // the gallery on a farm needs a store, not the benchmark's clusters
+mod pg;
+
 mod driver;
+mod farm;
 mod one_user;
 mod page;
 mod users;

@@ -8,7 +8,7 @@ use crate::driver::{Browser, Driver};
 use crate::harness::Server;
 use crate::page::{
     accessibility_problems, assert_fits_width, by_id, click_css, fill_small, gallery_ids,
-    goto_gallery, js, screenshot, select, submit_form, type_into, wait_for,
+    goto_gallery, js, screenshot, select, sign_in_as_admin, submit_form, type_into, wait_for,
 };
 
 in_each_browser!(submit_watch_compare);
@@ -20,27 +20,13 @@ async fn submit_watch_compare(browser: Browser) {
     let c = driver.session().await;
 
     // Sign in with the printed URL: the token is kept, and dropped from the address bar.
-    c.goto(&s.sign_in).await.unwrap();
-    wait_for(
-        &c,
-        "signed in as admin",
-        "document.getElementById('me').textContent.includes('admin')",
-        10,
-    )
-    .await;
+    sign_in_as_admin(&c, &s.sign_in).await;
     let url = c.current_url().await.unwrap();
     assert!(!url.as_str().contains("token"), "token left in {url}");
     assert_eq!(
         js(&c, "return localStorage.getItem('photonbox-token');").await,
         json!(s.admin)
     );
-    wait_for(
-        &c,
-        "the built-in scenes",
-        "document.querySelectorAll('#scene-name option').length >= 6",
-        10,
-    )
-    .await;
     assert_eq!(accessibility_problems(&c).await, json!([]));
 
     // The form's defaults are the server's spec's, for each integrator.

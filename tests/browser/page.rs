@@ -114,6 +114,26 @@ pub async fn screenshot(c: &Client, browser: Browser, name: &str) {
     );
 }
 
+/// Open a sign-in URL (`{base}/?token=...`, the admin's) and wait until the page says who
+/// is signed in and has loaded the built-in scenes.
+pub async fn sign_in_as_admin(c: &Client, url: &str) {
+    c.goto(url).await.unwrap();
+    wait_for(
+        c,
+        "signed in as admin",
+        "document.getElementById('me').textContent.includes('admin')",
+        10,
+    )
+    .await;
+    wait_for(
+        c,
+        "the built-in scenes",
+        "document.querySelectorAll('#scene-name option').length >= 6",
+        10,
+    )
+    .await;
+}
+
 /// The job id of the job page the browser is on.
 pub async fn job_id_in_url(c: &Client) -> i64 {
     let hash = wait_for(

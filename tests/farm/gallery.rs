@@ -1,0 +1,125 @@
+//! The gallery on either store: the page, its scripts and the API it reads (scenes, the
+//! spec's defaults, jobs in the one-box server's shape), and a finished job deleted. Run on
+//! the farm and on one box (`both!`), so that a field the gallery reads cannot go missing
+//! from either.
+
+use serde_json::Value;
+
+use crate::both;
+use crate::harness::*;
+
+/// The fields of a job as `GET /api/jobs/{id}` shows it (`server::views::JobView`).
+const JOB_FIELDS: [&str; 18] = [
+    "created",
+    "error",
+    "eta_seconds",
+    "finished",
+    "id",
+    "links",
+    "memory_estimate_bytes",
+    "mine",
+    "owner",
+    "params",
+    "phase",
+    "progress",
+    "public",
+    "queue_position",
+    "scene",
+    "started",
+    "stats",
+    "status",
+];
+
+fn json(api: &Api, token: &str, path: &str) -> Value {
+    let (status, body) = api.get(token, path);
+    assert_eq!(status, 200, "{path}: {}", String::from_utf8_lossy(&body));
+    serde_json::from_slice(&body).unwrap()
+}
+
+fn fields(job: &Value) -> Vec<&str> {
+    let mut keys: Vec<&str> = job
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(|k| k.as_str())
+        .collect();
+    keys.sort();
+    keys
+}
+
+fn the_gallery_and_the_api_it_reads_are_served(kind: Kind) {
+    let d = Deployment::start(kind, 1);
+    let (api, admin) = (&d.api, &d.admin);
+
+    let (status, page) = api.get("", "/");
+    assert_eq!(status, 200);
+    let page = String::from_utf8(page).unwrap();
+    assert!(
+        page.contains(r#"<script type="module" src="/web/app.js">"#),
+        "{page}"
+    );
+    let (status, script) = api.get("", "/web/app.js");
+    assert_eq!((status, script.is_empty()), (200, false));
+
+    let doc = json(api, "", "/api/openapi.json");
+    let defaults = &doc["components"]["schemas"]["Params"]["x-defaults"];
+    assert!(defaults["ppm"].is_object(), "no ppm defaults: {defaults}");
+    let scenes = json(api, admin, "/api/scenes");
+    let names: Vec<&str> = scenes["scenes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert!(names.contains(&"cornell_mirror_glass"), "{names:?}");
+    assert!(json(api, admin, "/api/scenes/cornell")["camera"].is_object());
+    assert_eq!(api.get(admin, "/api/scenes/nowhere").0, 404);
+    assert_eq!(api.get("", "/api/scenes").0, 401);
+
+    let id = api.submit(admin, ppm_params());
+    api.wait_done(admin, id);
+    let job = api.job(admin, id);
+    assert_eq!(fields(&job), JOB_FIELDS, "{job}");
+    assert_eq!(job["owner"], "admin");
+    assert_eq!(job["mine"], true);
+    assert_eq!(job["progress"], 1.0);
+    assert_eq!(job["links"]["png"], format!("/api/jobs/{id}/image.png"));
+    assert_eq!(job["links"]["events"], format!("/api/jobs/{id}/events"));
+    assert!(job["memory_estimate_bytes"].as_u64().unwrap() > 0, "{job}");
+    if let Kind::Postgres = kind {
+        // Merged, the tasks' results are dropped: a finished job keeps its images only.
+        let kept: i64 = store_query(d.store(), async move |pool| {
+            sqlx::query_scalar(
+                "SELECT count(*) FROM tasks WHERE job_id = $1 AND result IS NOT NULL",
+            )
+            .bind(id)
+            .fetch_one(pool)
+            .await
+            .unwrap()
+        });
+        assert_eq!(kept, 0, "task results kept after the merge");
+    }
+    let list = json(api, admin, "/api/jobs");
+    let listed = &list["jobs"].as_array().unwrap()[0];
+    assert_eq!(
+        (listed["id"].as_i64(), fields(listed)),
+        (Some(id), JOB_FIELDS.to_vec())
+    );
+
+    // A finished job deleted goes with its images.
+    let r = client()
+        .delete(format!("{}/api/jobs/{id}", api.base))
+        .bearer_auth(admin)
+        .send()
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 204);
+    assert_eq!(api.get(admin, &format!("/api/jobs/{id}")).0, 404);
+    assert_eq!(api.get(admin, &format!("/api/jobs/{id}/image.exr")).0, 404);
+    assert!(
+        json(api, admin, "/api/jobs")["jobs"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
+}
+both!(the_gallery_and_the_api_it_reads_are_served);
