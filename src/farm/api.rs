@@ -18,7 +18,7 @@ use serde_json::{Value, json};
 
 use super::preview::{Encoding, Previews};
 use super::task::split;
-use super::{FarmError, FarmJob, Queue, epoch_seconds};
+use super::{FarmError, FarmJob, OverLimit, Queue, UserLimits, epoch_seconds};
 use crate::server::api::{scene_json, scene_list};
 use crate::server::auth::{User, bearer, token_hash};
 use crate::server::error::ApiError;
@@ -27,7 +27,7 @@ use crate::server::needs::Limits;
 use crate::server::scenes::SceneCatalog;
 use crate::server::state::Snapshot;
 use crate::server::store::{JobRow, Status};
-use crate::server::submit::{Admitted, admit, read_body};
+use crate::server::submit::{Admitted, admit, over_storage, queue_full, read_body};
 use crate::server::views::{JobList, JobView, SceneList};
 use crate::server::web;
 
@@ -144,25 +144,25 @@ async fn submit(
             "a reference job is not supported on the farm yet",
         ));
     }
-    let queued = api
-        .queue
-        .queued_jobs_of(user.id)
-        .await
-        .map_err(store_error)?;
-    if queued >= api.limits.max_queued_per_user as i64 {
-        return Err(ApiError::new(
-            StatusCode::TOO_MANY_REQUESTS,
-            Some("limits.max_queued_per_user"),
-            format!("you already have {queued} queued jobs, the limit: wait for some to finish"),
-        ));
-    }
     let height = row.size.map_or(0, |(_, h)| h);
     let tasks = split(&spec.render, work, height, row.memory_bytes);
-    let id = api
+    let limits = UserLimits {
+        max_queued: api.limits.max_queued_per_user as i64,
+        storage_bytes: api.limits.storage_bytes_per_user,
+    };
+    let submitted = api
         .queue
-        .submit_job(&row, uploaded.as_deref(), &tasks)
+        .submit_job(&row, uploaded.as_deref(), &tasks, limits)
         .await
         .map_err(store_error)?;
+    let id = match submitted {
+        Ok(id) => id,
+        Err(OverLimit::Queued) => return Err(queue_full(api.limits.max_queued_per_user)),
+        Err(OverLimit::Storage { used }) => {
+            let adding = row.scene_bytes + row.result_estimate;
+            return Err(over_storage(used, limits.storage_bytes, adding));
+        }
+    };
     let link = format!("/api/jobs/{id}");
     let body = json!({"id": id, "status": "queued", "links": {"self": link}});
     Ok((StatusCode::ACCEPTED, [(header::LOCATION, link)], Json(body)).into_response())

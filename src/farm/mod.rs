@@ -20,7 +20,7 @@ pub mod worker;
 pub mod workers;
 
 pub use queue::{Completion, Lease, LeaseLost, NewTask, Queue};
-pub use records::{FarmJob, JobImages, JobSource, TaskCount};
+pub use records::{FarmJob, JobImages, JobSource, OverLimit, TaskCount, UserLimits};
 pub use worker::{WorkerConfig, run_worker};
 
 /// What one task renders.

@@ -48,6 +48,32 @@ impl TaskCount {
     }
 }
 
+/// What one user may hold, checked by [`Queue::submit_job`] (the one-box server's
+/// `max_queued_per_user` and `storage_bytes_per_user`).
+#[derive(Clone, Copy, Debug)]
+pub struct UserLimits {
+    pub max_queued: i64,
+    pub storage_bytes: u64,
+}
+
+/// The limit a submission would pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OverLimit {
+    /// The user's queued jobs are at the limit.
+    Queued,
+    /// The user's jobs take `used` bytes, and this one would not fit beside them.
+    Storage { used: u64 },
+}
+
+/// Bytes a user's jobs take, as the one-box server counts them (`Jobs::storage_of`):
+/// uploaded scenes, and each job's images, or their estimate until it has them.
+/// (`octet_length` of a stored value reads its size, not the value.)
+const STORAGE_OF: &str = "SELECT COALESCE(sum(COALESCE(octet_length(scene_json), 0)
+        + CASE WHEN status IN ('queued', 'running') THEN result_estimate
+               ELSE COALESCE(octet_length(result_exr), 0) + COALESCE(octet_length(result_png), 0)
+          END), 0)::BIGINT
+      FROM jobs WHERE user_id = $1";
+
 /// A job as the API instances show it: its row, its tasks' progress and its owner's name.
 #[derive(Clone, Debug)]
 pub struct FarmJob {
@@ -131,28 +157,41 @@ impl Queue {
             .transpose()?)
     }
 
-    /// Jobs of `user` not yet started.
-    pub async fn queued_jobs_of(&self, user: i64) -> Result<i64, FarmError> {
-        Ok(
-            sqlx::query_scalar(
-                "SELECT count(*) FROM jobs WHERE user_id = $1 AND status = 'queued'",
-            )
-            .bind(user)
-            .fetch_one(self.pool())
-            .await?,
-        )
-    }
-
     /// Commit a new queued job and its tasks in one transaction (durable before the API
-    /// acknowledges it), and wake the workers. Returns its id: random in 1..2^53, as the
-    /// SQLite store's.
+    /// acknowledges it), and wake the workers; or refuse it if it would pass one of its
+    /// owner's `limits`. The limits are checked inside the transaction, under a lock on the
+    /// owner's row: one submission per user at a time, whichever API instance takes it, so
+    /// that no two pass a limit together. Returns its id: random in 1..2^53, as the SQLite
+    /// store's.
     pub async fn submit_job(
         &self,
         row: &JobRow,
         scene_json: Option<&str>,
         tasks: &[NewTask],
-    ) -> Result<i64, FarmError> {
+        limits: UserLimits,
+    ) -> Result<Result<i64, OverLimit>, FarmError> {
         let mut tx = self.pool().begin().await?;
+        sqlx::query("SELECT 1 FROM users WHERE id = $1 FOR UPDATE")
+            .bind(row.user_id)
+            .execute(&mut *tx)
+            .await?;
+        let queued: i64 = sqlx::query_scalar(
+            "SELECT count(*) FROM jobs WHERE user_id = $1 AND status = 'queued'",
+        )
+        .bind(row.user_id)
+        .fetch_one(&mut *tx)
+        .await?;
+        if queued >= limits.max_queued {
+            return Ok(Err(OverLimit::Queued));
+        }
+        let used: i64 = sqlx::query_scalar(STORAGE_OF)
+            .bind(row.user_id)
+            .fetch_one(&mut *tx)
+            .await?;
+        let used = used.max(0) as u64;
+        if used + row.scene_bytes + row.result_estimate > limits.storage_bytes {
+            return Ok(Err(OverLimit::Storage { used }));
+        }
         let id = rand::random_range(1..(1i64 << 53));
         sqlx::query(
             "INSERT INTO jobs (id, user_id, public, status, scene_name, scene_json, params_json,
@@ -174,7 +213,7 @@ impl Queue {
         .await?;
         super::jobs::queue_tasks(&mut tx, id, tasks).await?;
         tx.commit().await?;
-        Ok(id)
+        Ok(Ok(id))
     }
 
     /// A job's row, its progress (tasks done over tasks) and its owner.

@@ -188,14 +188,7 @@ async fn commit(
     let limits = &app.config.limits;
     let _submitting = app.submit.lock().await;
     if app.jobs.queued_of(user.id) >= limits.max_queued_per_user {
-        return Err(ApiError::new(
-            StatusCode::TOO_MANY_REQUESTS,
-            Some("limits.max_queued_per_user"),
-            format!(
-                "you already have {} queued jobs, the limit: wait for some to finish",
-                limits.max_queued_per_user
-            ),
-        ));
+        return Err(queue_full(limits.max_queued_per_user));
     }
     check_storage(app, user, row.scene_bytes + row.result_estimate)?;
     let (app2, row2) = (app.clone(), row.clone());
@@ -212,18 +205,33 @@ fn check_storage(app: &AppRef, user: &User, adding: u64) -> Result<(), ApiError>
     let quota = app.config.limits.storage_bytes_per_user;
     let used = app.jobs.storage_of(user.id);
     if used + adding > quota {
-        return Err(ApiError::invalid(
-            "limits.storage_per_user",
-            format!(
-                "your jobs take {} MiB of your {} MiB storage and this one needs about {} MiB more: \
-                 delete some finished jobs",
-                used.div_ceil(1 << 20),
-                quota >> 20,
-                adding.div_ceil(1 << 20)
-            ),
-        ));
+        return Err(over_storage(used, quota, adding));
     }
     Ok(())
+}
+
+/// The answer to a user whose queued jobs are at the limit (the farm's too).
+pub(crate) fn queue_full(limit: usize) -> ApiError {
+    ApiError::new(
+        StatusCode::TOO_MANY_REQUESTS,
+        Some("limits.max_queued_per_user"),
+        format!("you already have {limit} queued jobs, the limit: wait for some to finish"),
+    )
+}
+
+/// The answer to a user whose jobs take `used` bytes of `quota`, when one `adding` more
+/// would not fit (the farm's too).
+pub(crate) fn over_storage(used: u64, quota: u64, adding: u64) -> ApiError {
+    ApiError::invalid(
+        "limits.storage_per_user",
+        format!(
+            "your jobs take {} MiB of your {} MiB storage and this one needs about {} MiB more: \
+             delete some finished jobs",
+            used.div_ceil(1 << 20),
+            quota >> 20,
+            adding.div_ceil(1 << 20)
+        ),
+    )
 }
 
 /// Whether reading a body failed because it passed the limit.

@@ -147,14 +147,21 @@ pub fn client() -> Client {
 
 impl Api {
     pub fn submit(&self, token: &str, params: Value) -> i64 {
+        let body = json!({"scene_name": "cornell_mirror_glass", "params": params});
+        let (status, v) = self.post_job(token, &body);
+        assert_eq!(status, 202, "{v}");
+        v["id"].as_i64().unwrap()
+    }
+
+    /// `POST /api/jobs` with `body`: the status and the JSON answer.
+    pub fn post_job(&self, token: &str, body: &Value) -> (u16, Value) {
         let r = client()
             .post(format!("{}/api/jobs", self.base))
             .bearer_auth(token)
-            .json(&json!({"scene_name": "cornell_mirror_glass", "params": params}))
+            .json(body)
             .send()
             .unwrap();
-        assert_eq!(r.status().as_u16(), 202);
-        r.json::<Value>().unwrap()["id"].as_i64().unwrap()
+        (r.status().as_u16(), r.json::<Value>().unwrap())
     }
 
     pub fn get(&self, token: &str, path: &str) -> (u16, Vec<u8>) {
@@ -271,6 +278,8 @@ pub struct Deployment {
     pub admin: String,
     kind: Kind,
     store: String,
+    /// More flags for `serve`.
+    flags: Vec<String>,
     cluster: Option<Cluster>,
     data: Option<tempfile::TempDir>,
     _workers: Vec<Proc>,
@@ -279,6 +288,11 @@ pub struct Deployment {
 impl Deployment {
     /// Start a deployment of `kind` with `workers` workers (a farm; one box renders itself).
     pub fn start(kind: Kind, workers: usize) -> Deployment {
+        Deployment::start_with(kind, workers, &[])
+    }
+
+    /// [`Deployment::start`] with more flags for `serve` (limits).
+    pub fn start_with(kind: Kind, workers: usize, flags: &[&str]) -> Deployment {
         let (cluster, data, store) = match kind {
             Kind::Postgres => {
                 let own = Cluster::new(true);
@@ -296,6 +310,7 @@ impl Deployment {
             admin: String::new(),
             kind,
             store,
+            flags: flags.iter().map(|f| f.to_string()).collect(),
             cluster,
             data,
             _workers: Vec::new(),
@@ -310,10 +325,12 @@ impl Deployment {
     }
 
     fn start_api(&mut self) {
-        let (api, admin) = match self.kind {
-            Kind::Postgres => start_api(&self.store),
-            Kind::Sqlite => start_serve(&["--threads", "1", "--data", &self.store]),
+        let base: Vec<&str> = match self.kind {
+            Kind::Postgres => vec!["--no-render", "--store", &self.store],
+            Kind::Sqlite => vec!["--threads", "1", "--data", &self.store],
         };
+        let flags: Vec<&str> = self.flags.iter().map(String::as_str).collect();
+        let (api, admin) = start_serve(&[base, flags].concat());
         self.api = api;
         let data_admin = self.data.as_ref().map(|_| {
             let path = std::path::Path::new(&self.store).join("admin-token");
