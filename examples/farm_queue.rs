@@ -104,7 +104,7 @@ async fn worker(q: Queue, id: usize, result: Vec<u8>, render: Duration) -> anyho
         let t2 = Instant::now();
         tokio::time::sleep(render / 2).await;
         let t2b = Instant::now();
-        let done = q.complete(&l, &result).await?;
+        let done = q.complete(&l, &result, None).await?;
         let t3 = Instant::now();
         if matches!(done, Completion::Refused(_)) {
             t.refused += 1;

@@ -143,7 +143,8 @@ fn bidirectional_integrators() {
 #[test]
 fn bands_of_rows_rendered_apart_merge_to_the_bits_of_the_whole_image() {
     use photonbox::farm::Unit;
-    use photonbox::farm::task::{Kept, merge, render_unit, split};
+    use photonbox::farm::outcome::merge;
+    use photonbox::farm::task::{Kept, render_unit, split};
     use photonbox::render::{Inputs, Rows, run};
     use std::sync::atomic::AtomicBool;
 
@@ -167,18 +168,19 @@ fn bands_of_rows_rendered_apart_merge_to_the_bits_of_the_whole_image() {
             .map(|(i, t)| {
                 let own = Kept::default();
                 let kept = if i % 2 == 0 { &shared } else { &own };
-                let result = render_unit(&scene, &spec, b"", t.unit, kept, &cancel).unwrap();
-                (t.unit, result)
+                let key: &[u8] = b"";
+                let result = render_unit(&scene, &spec, (key, None), t.unit, kept, &cancel);
+                (t.unit, result.unwrap().bytes)
             })
             .collect();
-        let merged = merge((48, 40), &units).unwrap();
+        let merged = merge((48, 40), &units, None).unwrap().image;
         assert!(
             bits(&merged.pixels) == bits(&whole.pixels),
             "{spec:?}: the bands differ from the whole image"
         );
         let mut missing = units.clone();
         missing.remove(1);
-        assert!(merge((48, 40), &missing).is_err());
+        assert!(merge((48, 40), &missing, None).is_err());
     }
 
     let band = |spec: &RenderSpec, first, count, reference| {

@@ -27,7 +27,9 @@ use crate::server::needs::Limits;
 use crate::server::scenes::SceneCatalog;
 use crate::server::state::Snapshot;
 use crate::server::store::{JobRow, Status};
-use crate::server::submit::{Admitted, admit, over_storage, queue_full, read_body};
+use crate::server::submit::{
+    Admitted, admit, check_reference, over_storage, queue_full, read_body,
+};
 use crate::server::views::{JobList, JobView, SceneList};
 use crate::server::web;
 
@@ -136,13 +138,15 @@ async fn submit(
         spec,
         uploaded,
         work,
-        ..
+        size: admitted_size,
     } = admit(&api.catalog, &api.limits, &user, value).await?;
-    if spec.reference_job.is_some() {
-        return Err(ApiError::invalid(
-            "params.reference_job",
-            "a reference job is not supported on the farm yet",
-        ));
+    if let Some(reference) = spec.reference_job {
+        let row = match api.queue.job(reference).await.map_err(store_error)? {
+            Some(j) if user.admin || j.row.user_id == user.id || j.row.public => Some(j.row),
+            _ => None,
+        };
+        let size = row.as_ref().map(|r| (r.status, r.size));
+        check_reference(reference, size, admitted_size)?;
     }
     let height = row.size.map_or(0, |(_, h)| h);
     let tasks = split(&spec.render, work, height, row.memory_bytes);

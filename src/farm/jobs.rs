@@ -114,18 +114,31 @@ impl Queue {
             .collect()
     }
 
-    /// The units and results of job `id`'s tasks in merge order (None for a task not
-    /// done).
-    pub async fn results(&self, id: i64) -> Result<Vec<(Unit, Option<Vec<u8>>)>, FarmError> {
-        let rows =
-            sqlx::query("SELECT unit::text, result FROM tasks WHERE job_id = $1 ORDER BY seq")
-                .bind(id)
-                .fetch_all(self.pool())
-                .await?;
+    /// Job `id`'s tasks' units, results and stats in merge order (None for a task not done).
+    pub async fn results(&self, id: i64) -> Result<Vec<TaskResult>, FarmError> {
+        let rows = sqlx::query(
+            "SELECT unit::text, result, stats_json FROM tasks WHERE job_id = $1 ORDER BY seq",
+        )
+        .bind(id)
+        .fetch_all(self.pool())
+        .await?;
         rows.iter()
-            .map(|r| Ok((serde_json::from_str(r.try_get(0)?)?, r.try_get(1)?)))
+            .map(|r| {
+                Ok(TaskResult {
+                    unit: serde_json::from_str(r.try_get(0)?)?,
+                    result: r.try_get(1)?,
+                    stats_json: r.try_get(2)?,
+                })
+            })
             .collect()
     }
+}
+
+/// A task's unit, and its result and STATS.json once it is done.
+pub struct TaskResult {
+    pub unit: Unit,
+    pub result: Option<Vec<u8>>,
+    pub stats_json: Option<String>,
 }
 
 /// Queue job `job_id`'s tasks in merge order within `tx` and wake the workers when it

@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub mod api;
 mod events;
 mod jobs;
+pub mod outcome;
 pub mod preview;
 pub mod probe;
 pub mod queue;
@@ -19,6 +20,7 @@ pub mod task;
 pub mod worker;
 pub mod workers;
 
+pub use jobs::TaskResult;
 pub use queue::{Completion, Lease, LeaseLost, NewTask, Queue};
 pub use records::{FarmJob, JobImages, JobSource, OverLimit, TaskCount, UserLimits};
 pub use worker::{WorkerConfig, run_worker};

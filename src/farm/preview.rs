@@ -9,7 +9,7 @@
 
 use std::collections::BTreeSet;
 
-use super::task::image_of;
+use super::outcome::image_of;
 use super::{Queue, Unit};
 use crate::render::Image;
 use crate::render::output;

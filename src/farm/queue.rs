@@ -216,13 +216,19 @@ impl Queue {
         Err(FarmError::Lost(self.why_lost(l).await?))
     }
 
-    /// Hand in the result of a leased task. Stored with the task's completion in one
-    /// transaction, and only if the lease is still this attempt's.
-    pub async fn complete(&self, l: &Lease, result: &[u8]) -> Result<Completion, FarmError> {
+    /// Hand in the result of a leased task (and its STATS.json). Stored with the task's
+    /// completion in one transaction, and only if the lease is still this attempt's.
+    pub async fn complete(
+        &self,
+        l: &Lease,
+        result: &[u8],
+        stats_json: Option<&str>,
+    ) -> Result<Completion, FarmError> {
         let mut tx = self.pool.begin().await?;
         // The task's result and its worker's count, in one statement.
         let stored: i64 = for_lease(
-            "WITH t AS (UPDATE tasks SET state = 'done', result = $4, lease_until = NULL
+            "WITH t AS (UPDATE tasks SET state = 'done', result = $4, stats_json = $5,
+                               lease_until = NULL
                          WHERE job_id = $1 AND seq = $2 AND attempt = $3 AND state = 'leased'
                         RETURNING worker),
                   w AS (UPDATE workers SET tasks_done = tasks_done + 1
@@ -231,6 +237,7 @@ impl Queue {
             l,
         )
         .bind(result)
+        .bind(stats_json)
         .fetch_one(&mut *tx)
         .await?
         .try_get(0)?;

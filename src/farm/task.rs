@@ -1,6 +1,6 @@
 //! What a farm does with a job's render, apart from the queue: split it into units
-//! ([`split`]), render one unit on a worker ([`render_unit`]) and merge the units' results
-//! into the job's image ([`merge`]). A progressive render that stops by its pass count is
+//! ([`split`]) and render one unit on a worker ([`render_unit`]); `outcome.rs` merges the
+//! units' results into the job's image. A progressive render that stops by its pass count is
 //! split into pieces of passes, each rendered through the engine's one entry point with
 //! `Inputs::piece`; the pieces' exact sums (`PassSum`) merge to the bits of one run, so a
 //! farm's image is the same bytes as the same job on one box. A one-shot render large
@@ -13,7 +13,6 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
 use super::{NewTask, Unit};
-use crate::render::ppm::PassSum;
 use crate::render::{
     Cancelled, Control, Image, Inputs, MapRequest, MapSource, PhotonMaps, Piece, Rows, Scene,
     SuppliedMaps, TraceNow, run,
@@ -95,24 +94,32 @@ impl MapSource for Kept {
     }
 }
 
-/// A unit's result as stored: a piece's exact sum ([`PassSum::write_to`]), or an image (a
-/// band's or the whole render's: little-endian f32 RGB, row-major). `kept`: what earlier
-/// tasks of the job on this worker found (a piece's initial radii, a band's maps); set
-/// by this one when it finds them.
+/// What a worker hands in for a unit.
+pub struct UnitResult {
+    /// A piece's exact sum ([`crate::render::ppm::PassSum::write_to`]), or an image (a band's or the whole
+    /// render's: little-endian f32 RGB, row-major).
+    pub bytes: Vec<u8>,
+    /// The unit's STATS.json (a piece's: its own passes).
+    pub stats_json: String,
+}
+
+/// Render one unit of a job. `kept`: what earlier tasks of the job on this worker found (a
+/// piece's initial radii, a band's maps); set by this one when it finds them.
 pub fn render_unit(
     scene: &Scene,
     spec: &RenderSpec,
-    scene_key: &[u8],
+    (scene_key, reference): (&[u8], Option<&Image>),
     unit: Unit,
     kept: &Kept,
     cancel: &AtomicBool,
-) -> Result<Vec<u8>, crate::render::RenderError> {
+) -> Result<UnitResult, crate::render::RenderError> {
     let radii = &kept.radii;
     let control = Control {
         cancel: Some(cancel),
         progress: None,
     };
     let mut bytes = Vec::new();
+    let stats;
     match unit {
         Unit::Passes { first, count } => {
             let known = *radii.lock().unwrap_or_else(|e| e.into_inner());
@@ -127,7 +134,7 @@ pub fn render_unit(
                 ..Inputs::fresh()
             };
             let mut sum = None;
-            run(scene, spec, inputs, &control, &mut |st| {
+            let out = run(scene, spec, inputs, &control, &mut |st| {
                 if st.passes == piece.last() {
                     sum = Some(st.sum().clone());
                     *radii.lock().unwrap_or_else(|e| e.into_inner()) = Some(st.radius_initial);
@@ -136,6 +143,7 @@ pub fn render_unit(
             })?;
             sum.expect("a piece runs to its last pass or fails")
                 .write_to(&mut bytes);
+            stats = Some(out.stats);
         }
         Unit::Whole | Unit::Rows { .. } => {
             let rows = match unit {
@@ -145,10 +153,13 @@ pub fn render_unit(
             // A band's maps are kept for the job's next band on this worker; a whole
             // render's are of no further use.
             let maps: &dyn MapSource = if rows.is_some() { kept } else { &TraceNow };
+            // A whole render is measured as it goes (a progressive one's passes, and its
+            // stop by target error); pieces and bands when merged (`outcome.rs`).
             let inputs = Inputs {
                 maps,
                 scene_key,
                 rows,
+                reference: reference.filter(|_| rows.is_none()),
                 ..Inputs::fresh()
             };
             let out = run(scene, spec, inputs, &control, &mut |_| {
@@ -159,76 +170,11 @@ pub fn render_unit(
                     bytes.extend_from_slice(&c.to_le_bytes());
                 }
             }
+            stats = Some(out.stats);
         }
     }
-    Ok(bytes)
-}
-
-/// The job's image from its units' results (in the job's task order), or why not.
-pub fn merge(size: (u32, u32), units: &[(Unit, Vec<u8>)]) -> Result<Image, String> {
-    let (width, height) = size;
-    if let [(Unit::Whole, bytes)] = units {
-        return image_of(width, height, bytes);
-    }
-    if let [(Unit::Rows { .. }, _), ..] = units {
-        return merge_rows(size, units);
-    }
-    let mut sum = PassSum::new(width, height);
-    let mut passes = 0u32;
-    for (unit, bytes) in units {
-        let Unit::Passes { count, .. } = unit else {
-            return Err("a job mixes units of passes and others".into());
-        };
-        let piece = PassSum::read_from(width, height, bytes).ok_or_else(|| {
-            format!(
-                "a result of {} bytes is not a {width}x{height} sum",
-                bytes.len()
-            )
-        })?;
-        sum.merge(&piece);
-        passes += count;
-    }
-    Ok(sum.mean(passes))
-}
-
-/// The image of bands that cover its rows once, in order.
-fn merge_rows(size: (u32, u32), units: &[(Unit, Vec<u8>)]) -> Result<Image, String> {
-    let (width, height) = size;
-    let mut image = Image::new(width, height);
-    let mut next = 0u32;
-    for (unit, bytes) in units {
-        let &Unit::Rows { first, count } = unit else {
-            return Err("a job mixes bands of rows and other units".into());
-        };
-        if first != next || first as u64 + count as u64 > height as u64 {
-            return Err(format!("rows {first}+{count} do not follow row {next}"));
-        }
-        let band = image_of(width, count, bytes)?;
-        let at = first as usize * width as usize;
-        image.pixels[at..at + band.pixels.len()].copy_from_slice(&band.pixels);
-        next += count;
-    }
-    if next != height {
-        return Err(format!("the bands end at row {next} of {height}"));
-    }
-    Ok(image)
-}
-
-pub(super) fn image_of(width: u32, height: u32, bytes: &[u8]) -> Result<Image, String> {
-    let pixels = width as usize * height as usize;
-    if bytes.len() != pixels * 12 {
-        return Err(format!(
-            "a result of {} bytes is not a {width}x{height} image",
-            bytes.len()
-        ));
-    }
-    let mut image = Image::new(width, height);
-    for (px, chunk) in image.pixels.iter_mut().zip(bytes.chunks_exact(12)) {
-        for (c, b) in px.iter_mut().zip(chunk.chunks_exact(4)) {
-            *c = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-        }
-    }
-    Ok(image)
+    let stats_json = serde_json::to_string(&stats).unwrap_or_default();
+    Ok(UnitResult { bytes, stats_json })
 }
 
 #[cfg(test)]
@@ -330,19 +276,5 @@ mod tests {
                 ..
             }]
         ));
-    }
-
-    #[test]
-    fn a_whole_image_round_trips_and_a_short_result_is_refused() {
-        let mut image = Image::new(3, 2);
-        image.pixels[4] = [1.5, -0.0, f32::MIN_POSITIVE];
-        let bytes: Vec<u8> = image
-            .pixels
-            .iter()
-            .flatten()
-            .flat_map(|c| c.to_le_bytes())
-            .collect();
-        assert!(merge((3, 2), &[(Unit::Whole, bytes.clone())]).unwrap() == image);
-        assert!(merge((3, 2), &[(Unit::Whole, bytes[1..].to_vec())]).is_err());
     }
 }

@@ -14,11 +14,12 @@ use std::time::Duration;
 use anyhow::Context;
 use tokio::sync::watch;
 
+use super::outcome::{job_stats, merge};
 use super::queue::CANCEL_CHANNEL;
 use super::records::{JobImages, JobSource};
-use super::task::{Kept, merge, render_unit};
+use super::task::{Kept, UnitResult, render_unit};
 use super::{Completion, FarmError, Lease, Queue};
-use crate::render::{Control, RenderError, Scene, output};
+use crate::render::{Control, Image, RenderError, Scene, output};
 use crate::server::jobs::JobSpec;
 use crate::server::scenes::{ResolvedScene, SceneCatalog, resolve_uploaded};
 
@@ -54,6 +55,8 @@ struct Prepared {
     size: (u32, u32),
     /// What its tasks found that the next ones reuse (initial radii, photon maps).
     kept: Kept,
+    /// The reference job's image, when the job has one.
+    reference: Option<Image>,
 }
 
 /// Run a worker until `shutdown` turns true; `joined` is given its queue once it has
@@ -173,7 +176,7 @@ impl Task<'_> {
                 render_unit(
                     &job2.scene,
                     &job2.spec.render,
-                    key,
+                    (key, job2.reference.as_ref()),
                     unit,
                     &job2.kept,
                     &cancel2,
@@ -212,7 +215,7 @@ impl Task<'_> {
             }
         };
         match result {
-            Ok(Ok(bytes)) => self.hand_in(&lease, &job, &bytes).await,
+            Ok(Ok(result)) => self.hand_in(&lease, &job, &result).await,
             Ok(Err(RenderError::Cancelled(_))) if releasing => {
                 if let Err(e) = self.queue.release(&lease).await {
                     tracing::warn!("giving the task back: {e}");
@@ -236,9 +239,26 @@ impl Task<'_> {
             .await
             .map_err(|e| format!("reading the job: {e}"))?;
         let (catalog, pool) = (self.catalog.clone(), self.pool.clone());
-        tokio::task::spawn_blocking(move || prepare(job_id, &source, &catalog, &pool))
-            .await
-            .map_err(|e| e.to_string())?
+        let mut prepared =
+            tokio::task::spawn_blocking(move || prepare(job_id, &source, &catalog, &pool))
+                .await
+                .map_err(|e| e.to_string())??;
+        if let Some(rid) = prepared.spec.reference_job {
+            prepared.reference = Some(self.reference(rid).await?);
+        }
+        Ok(prepared)
+    }
+
+    /// Reference job `rid`'s image, from the store; it may have been deleted since the
+    /// job was submitted.
+    async fn reference(&self, rid: i64) -> Result<Image, String> {
+        let gone = |e: String| {
+            format!("reference job {rid}: its image cannot be read (was the job deleted?): {e}")
+        };
+        let bytes = self.queue.job_image(rid, true).await;
+        let bytes = bytes.map_err(|e| gone(e.to_string()))?;
+        let bytes = bytes.ok_or_else(|| gone("no image".into()))?;
+        output::decode_exr(&bytes).map_err(|e| gone(e.to_string()))
     }
 
     async fn report_failure(&self, lease: &Lease, reason: &str) {
@@ -251,10 +271,11 @@ impl Task<'_> {
     /// Hand the result in; the last task's worker merges the job. A store out of reach is
     /// tried again (the lease may still hold, and if it has passed on, the fence refuses
     /// the result and says so in the counters) until [`HAND_IN_PATIENCE`].
-    async fn hand_in(&self, lease: &Lease, job: &Prepared, bytes: &[u8]) {
+    async fn hand_in(&self, lease: &Lease, job: &Prepared, result: &UnitResult) {
         let give_up = tokio::time::Instant::now() + HAND_IN_PATIENCE;
+        let stats = Some(result.stats_json.as_str());
         let completed = loop {
-            match self.queue.complete(lease, bytes).await {
+            match self.queue.complete(lease, &result.bytes, stats).await {
                 Err(FarmError::Db(e)) if tokio::time::Instant::now() < give_up => {
                     tracing::warn!(
                         job = lease.job_id,
@@ -280,29 +301,33 @@ impl Task<'_> {
         }
     }
 
-    /// Merge the job's results in task order and store its images.
+    /// Merge the job's results in task order (measured against its reference, if it has
+    /// one), and store its images and stats.
     async fn finish(&self, job_id: i64, job: &Prepared) -> Result<(), String> {
         let results = self
             .queue
             .results(job_id)
             .await
             .map_err(|e| e.to_string())?;
+        let stats: Vec<Option<String>> = results.iter().map(|r| r.stats_json.clone()).collect();
         let units = results
             .into_iter()
-            .map(|(unit, r)| r.map(|r| (unit, r)))
+            .map(|r| r.result.map(|bytes| (r.unit, bytes)))
             .collect::<Option<Vec<_>>>()
             .ok_or("a task of a finished job has no result")?;
-        let (size, exposure, tasks) = (job.size, job.spec.exposure, units.len());
-        let images = tokio::task::spawn_blocking(move || -> Result<JobImages, String> {
-            let image = merge(size, &units)?;
-            Ok(JobImages {
-                exr: output::encode_exr(&image).map_err(|e| e.to_string())?,
-                png: output::encode_png(&image, exposure).map_err(|e| e.to_string())?,
-            })
+        let (size, exposure) = (job.size, job.spec.exposure);
+        let reference = job.reference.clone();
+        let (images, errors) = tokio::task::spawn_blocking(move || {
+            let merged = merge(size, &units, reference.as_ref())?;
+            let images = JobImages {
+                exr: output::encode_exr(&merged.image).map_err(|e| e.to_string())?,
+                png: output::encode_png(&merged.image, exposure).map_err(|e| e.to_string())?,
+            };
+            Ok::<_, String>((images, merged.errors))
         })
         .await
         .map_err(|e| e.to_string())??;
-        let stats = serde_json::json!({ "farm": { "tasks": tasks } }).to_string();
+        let stats = job_stats(&stats, &errors).to_string();
         self.queue
             .finish_job(job_id, &images, &stats)
             .await
@@ -339,5 +364,6 @@ fn prepare(
         spec,
         size,
         kept: Kept::default(),
+        reference: None,
     })
 }

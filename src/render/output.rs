@@ -105,7 +105,21 @@ pub fn write_images(
 
 /// Read a linear OpenEXR (or any format `image` reads as float RGB) as an [`Image`].
 pub fn read_exr(path: &Path) -> image::ImageResult<Image> {
-    let img = image::open(path)?;
+    let hint = image::error::ImageFormatHint::PathExtension(path.to_path_buf());
+    linear(image::open(path)?, hint)
+}
+
+/// A linear OpenEXR's bytes (a farm's stored image) as an [`Image`].
+pub fn decode_exr(bytes: &[u8]) -> image::ImageResult<Image> {
+    let img = image::load_from_memory_with_format(bytes, ImageFormat::OpenExr)?;
+    linear(
+        img,
+        image::error::ImageFormatHint::Exact(ImageFormat::OpenExr),
+    )
+}
+
+/// A decoded image as linear radiance, if it is float.
+fn linear(img: DynamicImage, hint: image::error::ImageFormatHint) -> image::ImageResult<Image> {
     if !matches!(
         img,
         DynamicImage::ImageRgb32F(_) | DynamicImage::ImageRgba32F(_)
@@ -113,7 +127,7 @@ pub fn read_exr(path: &Path) -> image::ImageResult<Image> {
         // An 8-bit image is display-encoded, not radiance: comparing with it would mislead.
         return Err(image::ImageError::Unsupported(
             image::error::UnsupportedError::from_format_and_kind(
-                image::error::ImageFormatHint::PathExtension(path.to_path_buf()),
+                hint,
                 image::error::UnsupportedErrorKind::GenericFeature(
                     "not a linear float image (expected a 32-bit float EXR)".into(),
                 ),

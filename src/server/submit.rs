@@ -45,7 +45,11 @@ pub async fn submit_job(
     let value = read_body(limits.body_bytes, app.config.body_timeout, &headers, body).await?;
     let admitted = admit(&app.catalog, limits, &user, value).await?;
     if let Some(reference) = admitted.spec.reference_job {
-        check_reference(&app, &user, reference, admitted.size)?;
+        let seen = match app.jobs.view(reference) {
+            Some((row, _)) if visible(&user, &row) => Some((row.status, row.size)),
+            _ => None,
+        };
+        check_reference(reference, seen, admitted.size)?;
     }
     let Admitted { row, uploaded, .. } = admitted;
     let id = commit(&app, &user, row, uploaded).await?;
@@ -246,28 +250,25 @@ fn over_limit(e: &axum::Error) -> bool {
     false
 }
 
-/// A reference job must be one the user may see, be done, and have this job's `size`.
-fn check_reference(
-    app: &AppRef,
-    user: &User,
+/// A reference job must be one the user may see (`seen`: its status and size, None if the
+/// user may not see it), be done, and have this job's `size` (the farm's check too).
+pub(crate) fn check_reference(
     reference: i64,
+    seen: Option<(Status, Option<(u32, u32)>)>,
     size: (u32, u32),
 ) -> Result<(), ApiError> {
     let invalid = |msg: String| ApiError::invalid("params.reference_job", msg);
-    let row = match app.jobs.view(reference) {
-        Some((row, _)) if visible(user, &row) => row,
-        _ => return Err(invalid(format!("no job {reference} that you may see"))),
+    let Some((status, ref_size)) = seen else {
+        return Err(invalid(format!("no job {reference} that you may see")));
     };
-    if row.status != Status::Done {
+    if status != Status::Done {
         return Err(invalid(format!(
             "job {reference} is {}: a reference must be done",
-            row.status.as_str()
+            status.as_str()
         )));
     }
-    if row.size != Some(size) {
-        let shown = row
-            .size
-            .map_or("?x?".to_string(), |(w, h)| format!("{w}x{h}"));
+    if ref_size != Some(size) {
+        let shown = ref_size.map_or("?x?".to_string(), |(w, h)| format!("{w}x{h}"));
         return Err(invalid(format!(
             "job {reference} is {shown}, this job {}x{}: a reference must have the same width and height",
             size.0, size.1

@@ -218,6 +218,15 @@ pub fn proptest_config(default: u32) -> proptest::prelude::ProptestConfig {
 pub fn render_exr_by_cli(params: &serde_json::Value) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("one.exr");
+    let mut cmd = render_command(params, dir.path());
+    cmd.arg("--exr").arg(&exr);
+    run_render(cmd);
+    std::fs::read(&exr).unwrap()
+}
+
+/// `photonbox render` of `params` on the server tests' scene, on one thread, its PNG in
+/// `dir`: more flags may follow.
+pub fn render_command(params: &serde_json::Value, dir: &std::path::Path) -> std::process::Command {
     let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_photonbox"));
     cmd.arg("render")
         .arg(concat!(
@@ -225,19 +234,21 @@ pub fn render_exr_by_cli(params: &serde_json::Value) -> Vec<u8> {
             "/scenes/cornell_mirror_glass.json"
         ))
         .arg("-o")
-        .arg(dir.path().join("one.png"))
-        .arg("--exr")
-        .arg(&exr)
+        .arg(dir.join("one.png"))
         .args(["--threads", "1"]);
     for (k, v) in params.as_object().unwrap() {
         let v = v.as_str().map_or(v.to_string(), str::to_string);
         cmd.arg(format!("--{}", k.replace('_', "-"))).arg(v);
     }
+    cmd
+}
+
+/// Run a render command to its successful end.
+pub fn run_render(mut cmd: std::process::Command) {
     let out = cmd.output().unwrap();
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    std::fs::read(&exr).unwrap()
 }

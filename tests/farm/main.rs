@@ -11,3 +11,4 @@ mod limits;
 mod pg;
 mod preview;
 mod queue;
+mod reference;

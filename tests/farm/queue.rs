@@ -69,7 +69,7 @@ async fn concurrent_workers_claim_every_task_exactly_once() {
         workers.push(tokio::spawn(async move {
             let mut got = Vec::new();
             while let Some(l) = q.claim(&format!("w{w}"), GIB, MINUTE).await.unwrap() {
-                let done = q.complete(&l, &l.seq.to_le_bytes()).await.unwrap();
+                let done = q.complete(&l, &l.seq.to_le_bytes(), None).await.unwrap();
                 got.push((l, done));
             }
             got
@@ -111,14 +111,14 @@ async fn an_expired_lease_is_claimed_again_and_the_old_result_refused() {
         q.heartbeat(&old, MINUTE).await,
         Err(FarmError::Lost(LeaseLost::Superseded))
     ));
-    let late = q.complete(&old, b"stale").await.unwrap();
+    let late = q.complete(&old, b"stale", None).await.unwrap();
     assert_eq!(late, Completion::Refused(LeaseLost::Superseded));
     assert_eq!(q.metrics().fenced_refused(), 1);
-    let done = q.complete(&new, b"fresh").await.unwrap();
+    let done = q.complete(&new, b"fresh", None).await.unwrap();
     assert_eq!(done, Completion::Accepted { job_done: true });
     assert_eq!(results_of(&q, 10).await, vec![Some(b"fresh".to_vec())]);
     // A result can be handed in once.
-    let again = q.complete(&new, b"twice").await.unwrap();
+    let again = q.complete(&new, b"twice", None).await.unwrap();
     assert!(matches!(again, Completion::Refused(_)));
     assert_eq!(results_of(&q, 10).await, vec![Some(b"fresh".to_vec())]);
 }
@@ -132,7 +132,7 @@ async fn a_heartbeat_keeps_the_lease() {
     q.heartbeat(&l, MINUTE).await.unwrap();
     assert_eq!(claim(&q, MINUTE).await, None, "the lease was extended");
     assert_eq!(q.metrics().leases_expired(), 0);
-    let done = q.complete(&l, b"r").await.unwrap();
+    let done = q.complete(&l, b"r", None).await.unwrap();
     assert_eq!(done, Completion::Accepted { job_done: true });
 }
 
@@ -186,7 +186,7 @@ async fn a_released_task_goes_back_without_counting_a_failure() {
     let again = claim(&q, MINUTE).await.expect("queued again");
     assert_eq!(again.attempt, 2);
     assert!(matches!(
-        q.complete(&l, b"old").await.unwrap(),
+        q.complete(&l, b"old", None).await.unwrap(),
         Completion::Refused(_)
     ));
     assert_eq!(job_status(&q, 10).await.0, "running");
@@ -253,7 +253,7 @@ async fn cancel_drops_the_tasks_and_tells_the_listeners() {
         Err(FarmError::Lost(LeaseLost::Cancelled))
     ));
     assert_eq!(
-        q.complete(&held, b"r").await.unwrap(),
+        q.complete(&held, b"r", None).await.unwrap(),
         Completion::Refused(LeaseLost::Cancelled)
     );
     assert_eq!(claim(&q, MINUTE).await, None);
@@ -317,7 +317,7 @@ async fn a_restart_of_postgresql_loses_no_task_and_no_result() {
     add_user(&q, 1, "a").await;
     add_job(&q, 10, 1, 1.0, 3, 1).await;
     let first = claim(&q, MINUTE).await.unwrap();
-    q.complete(&first, b"kept").await.unwrap();
+    q.complete(&first, b"kept", None).await.unwrap();
     let held = claim(&q, MINUTE).await.unwrap();
     own.stop();
     let down = tokio::time::timeout(Duration::from_secs(1), q.heartbeat(&held, MINUTE)).await;
@@ -325,12 +325,12 @@ async fn a_restart_of_postgresql_loses_no_task_and_no_result() {
     own.start();
     // The pool opens new connections; the lease held across the restart is still good.
     q.heartbeat(&held, MINUTE).await.unwrap();
-    q.complete(&held, b"also kept").await.unwrap();
+    q.complete(&held, b"also kept", None).await.unwrap();
     let last = claim(&q, MINUTE)
         .await
         .expect("the third task, still queued");
     assert_eq!(last.seq, 2);
-    let done = q.complete(&last, b"end").await.unwrap();
+    let done = q.complete(&last, b"end", None).await.unwrap();
     assert_eq!(done, Completion::Accepted { job_done: true });
     let results = results_of(&q, 10).await;
     assert_eq!(
@@ -346,5 +346,5 @@ async fn a_restart_of_postgresql_loses_no_task_and_no_result() {
 /// The results of job `id`'s tasks in merge order, without their units.
 async fn results_of(q: &Queue, id: i64) -> Vec<Option<Vec<u8>>> {
     let results = q.results(id).await.unwrap();
-    results.into_iter().map(|(_, r)| r).collect()
+    results.into_iter().map(|t| t.result).collect()
 }
