@@ -9,7 +9,7 @@
 
 use std::collections::BTreeSet;
 
-use super::outcome::image_of;
+use super::outcome::{image_of, unpack_sum};
 use super::{Queue, Unit};
 use crate::render::Image;
 use crate::render::output;
@@ -29,7 +29,7 @@ impl Partial {
         match (self, unit) {
             (Partial::Passes { sum, passes }, Unit::Passes { count, .. }) => {
                 let (w, h) = (sum.width, sum.height);
-                let piece = PassSum::read_from(w, h, bytes)
+                let piece = unpack_sum(w, h, bytes)
                     .ok_or_else(|| format!("a result of {} bytes is not a sum", bytes.len()))?;
                 sum.merge(&piece);
                 *passes += count;

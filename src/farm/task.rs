@@ -12,6 +12,7 @@ use std::ops::ControlFlow;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
+use super::outcome::pack_sum;
 use super::{NewTask, Unit};
 use crate::render::{
     Cancelled, Control, Image, Inputs, MapRequest, MapSource, PhotonMaps, Piece, Rows, Scene,
@@ -96,7 +97,7 @@ impl MapSource for Kept {
 
 /// What a worker hands in for a unit.
 pub struct UnitResult {
-    /// A piece's exact sum ([`crate::render::ppm::PassSum::write_to`]), or an image (a band's or the whole
+    /// A piece's exact sum (`outcome::pack_sum`), or an image (a band's or the whole
     /// render's: little-endian f32 RGB, row-major).
     pub bytes: Vec<u8>,
     /// The unit's STATS.json (a piece's: its own passes).
@@ -141,8 +142,7 @@ pub fn render_unit(
                 }
                 ControlFlow::Continue(())
             })?;
-            sum.expect("a piece runs to its last pass or fails")
-                .write_to(&mut bytes);
+            bytes = pack_sum(&sum.expect("a piece runs to its last pass or fails"));
             stats = Some(out.stats);
         }
         Unit::Whole | Unit::Rows { .. } => {
