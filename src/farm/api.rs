@@ -19,7 +19,7 @@ use serde_json::{Value, json};
 use super::preview::{Encoding, Previews};
 use super::task::split;
 use super::{FarmError, FarmJob, OverLimit, Queue, UserLimits, epoch_seconds};
-use crate::server::api::{scene_json, scene_list};
+use crate::server::api::{scene_json, scene_list, visible};
 use crate::server::auth::{User, bearer, token_hash};
 use crate::server::error::ApiError;
 use crate::server::jobs::JobSpec;
@@ -92,7 +92,7 @@ pub(super) async fn user(api: &FarmApi, headers: &HeaderMap) -> Result<User, Api
 /// A job the user may see (others' private jobs do not exist for them: 404).
 pub(super) async fn visible_job(api: &FarmApi, user: &User, id: i64) -> Result<FarmJob, ApiError> {
     match api.queue.job(id).await.map_err(store_error)? {
-        Some(j) if user.admin || j.row.user_id == user.id || j.row.public => Ok(j),
+        Some(j) if visible(user, &j.row) => Ok(j),
         _ => Err(ApiError::not_found("job")),
     }
 }
@@ -141,12 +141,11 @@ async fn submit(
         size: admitted_size,
     } = admit(&api.catalog, &api.limits, &user, value).await?;
     if let Some(reference) = spec.reference_job {
-        let row = match api.queue.job(reference).await.map_err(store_error)? {
-            Some(j) if user.admin || j.row.user_id == user.id || j.row.public => Some(j.row),
+        let seen = match api.queue.job(reference).await.map_err(store_error)? {
+            Some(j) if visible(&user, &j.row) => Some((j.row.status, j.row.size)),
             _ => None,
         };
-        let size = row.as_ref().map(|r| (r.status, r.size));
-        check_reference(reference, size, admitted_size)?;
+        check_reference(reference, seen, admitted_size)?;
     }
     let height = row.size.map_or(0, |(_, h)| h);
     let tasks = split(&spec.render, work, height, row.memory_bytes);

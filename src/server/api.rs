@@ -59,7 +59,9 @@ pub fn router(app: AppRef) -> Router {
         .with_state(app)
 }
 
-pub(super) fn visible(user: &User, row: &JobRow) -> bool {
+/// Whether `user` may see job `row`: their own, a public one, or any for an admin (the
+/// farm's rule too).
+pub(crate) fn visible(user: &User, row: &JobRow) -> bool {
     user.admin || row.user_id == user.id || row.public
 }
 
