@@ -157,12 +157,7 @@ fn a_cancel_reaches_the_worker_within_a_second(kind: Kind) {
     api.wait(admin, id, Duration::from_secs(60), |j| {
         j["status"] == "running"
     });
-    let r = client()
-        .delete(format!("{}/api/jobs/{id}", api.base))
-        .bearer_auth(admin)
-        .send()
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 200);
+    assert_eq!(api.delete_job(admin, id), 200);
     let t0 = Instant::now();
     // The render has stopped when its worker (its box) starts the user's next job.
     let next = api.submit(
@@ -276,16 +271,7 @@ fn a_private_job_is_seen_by_its_owner_and_the_admin_only(kind: Kind) {
     assert!(listed(&bob) && listed(admin));
     assert!(!listed(&carol), "another user's private job is listed");
     assert_eq!(api.get(&carol, &format!("/api/jobs/{id}")).0, 404);
-    let cancel = |token: &str| {
-        client()
-            .delete(format!("{}/api/jobs/{id}", api.base))
-            .bearer_auth(token)
-            .send()
-            .unwrap()
-            .status()
-            .as_u16()
-    };
-    assert_eq!(cancel(&carol), 404);
+    assert_eq!(api.delete_job(&carol, id), 404);
     assert_eq!(api.get("not-a-token", "/api/jobs").0, 401);
 }
 both!(a_private_job_is_seen_by_its_owner_and_the_admin_only);

@@ -107,12 +107,7 @@ fn the_gallery_and_the_api_it_reads_are_served(kind: Kind) {
     );
 
     // A finished job deleted goes with its images.
-    let r = client()
-        .delete(format!("{}/api/jobs/{id}", api.base))
-        .bearer_auth(admin)
-        .send()
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 204);
+    assert_eq!(api.delete_job(admin, id), 204);
     assert_eq!(api.get(admin, &format!("/api/jobs/{id}")).0, 404);
     assert_eq!(api.get(admin, &format!("/api/jobs/{id}/image.exr")).0, 404);
     assert!(

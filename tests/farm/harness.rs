@@ -173,6 +173,17 @@ impl Api {
         (r.status().as_u16(), r.bytes().unwrap().to_vec())
     }
 
+    /// `DELETE /api/jobs/{id}` (cancel, or delete a finished job): the status.
+    pub fn delete_job(&self, token: &str, id: i64) -> u16 {
+        client()
+            .delete(format!("{}/api/jobs/{id}", self.base))
+            .bearer_auth(token)
+            .send()
+            .unwrap()
+            .status()
+            .as_u16()
+    }
+
     pub fn job(&self, token: &str, id: i64) -> Value {
         let (status, body) = self.get(token, &format!("/api/jobs/{id}"));
         assert_eq!(status, 200);

@@ -8,8 +8,8 @@ use serde_json::{Value, json};
 use crate::both;
 use crate::harness::*;
 
-/// As `tests/server/hardening.rs` on one box: uploaded scenes of 600 kB, two of which do not
-/// fit a quota of 1 MiB; another user has a quota of their own; deleting frees the space.
+/// Uploaded scenes of 600 kB, two of which do not fit a quota of 1 MiB; another user has a
+/// quota of their own; deleting frees the space.
 fn a_user_storage_quota_refuses_new_jobs_until_old_ones_are_deleted(kind: Kind) {
     let d = Deployment::start_with(kind, 1, &["--storage-mb", "1"]);
     let (api, admin) = (&d.api, &d.admin);
@@ -35,12 +35,7 @@ fn a_user_storage_quota_refuses_new_jobs_until_old_ones_are_deleted(kind: Kind) 
     );
     let bob = d.add_user("bob");
     run_to_done(&bob);
-    let r = client()
-        .delete(format!("{}/api/jobs/{first}", api.base))
-        .bearer_auth(admin)
-        .send()
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 204);
+    assert_eq!(api.delete_job(admin, first), 204);
     run_to_done(admin);
 }
 both!(a_user_storage_quota_refuses_new_jobs_until_old_ones_are_deleted);

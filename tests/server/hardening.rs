@@ -1,7 +1,8 @@
 //! What a hostile or careless client tried beyond the connection (docs/security.md), each
-//! held by a test here: a compute limit, a storage quota, streamed downloads, cancel inside
+//! held by a test here: a compute limit, streamed downloads, cancel inside
 //! the camera pass, corrupt ppm states, ids never reused after the store lost rows, the
-//! admin never locked out, one server per data folder.
+//! admin never locked out, one server per data folder. (The storage quota: tests/farm/limits.rs,
+//! on one box and on the farm.)
 
 use serde_json::{Value, json};
 
@@ -35,30 +36,6 @@ fn a_job_over_the_compute_limit_is_refused_with_its_estimate() {
                 "spp": 1, "gather_rays": 16, "photons": 1000, "caustic_photons": 0}}),
     );
     assert_eq!(status, 202, "{v}");
-}
-
-#[test]
-fn a_user_storage_quota_refuses_new_jobs_until_old_ones_are_deleted() {
-    let dir = tempfile::tempdir().unwrap();
-    let s = Server::start(dir.path(), &["--storage-mb", "1"]);
-    // An uploaded scene of 600 kB (a long description) and a tiny image: two do not fit in
-    // 1 MiB.
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/cornell.json"))
-        .unwrap();
-    let mut scene: Value = serde_json::from_str(&text).unwrap();
-    scene["description"] = json!("x".repeat(600_000));
-    let job = json!({"scene": scene, "params": {"width": 8, "height": 8,
-        "spp": 1, "integrator": "raytrace"}});
-    let first = run_to_done(&s, &s.admin, job.clone());
-    let (status, v) = post(&s, &s.admin, &job);
-    assert_eq!(status, 422, "{v}");
-    assert_eq!(v["path"], "limits.storage_per_user", "{v}");
-    // Another user has their own quota.
-    let bob = s.add_user("bob");
-    run_to_done(&s, &bob, job.clone());
-    // Deleting the first job frees its space.
-    assert_eq!(delete(&s, &s.admin, first).0, 204);
-    run_to_done(&s, &s.admin, job);
 }
 
 #[test]
