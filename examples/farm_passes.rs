@@ -2,19 +2,27 @@
 //! 1, then 2, ... `photonbox worker` processes of one thread each, against one API
 //! instance (`serve --store ... --no-render`) and a PostgreSQL started here in a temporary
 //! directory. Each run has a fresh database; the workers start and register before the job
-//! is submitted, and the time is from the 202 to the job's `done` (polled every 20 ms), so
-//! it holds the claims, the pieces' first-pass radius traces, the results' round trips and
-//! the merge: everything the farm adds to the passes.
+//! is submitted, and the time is the job's own, from its row: `created` (the API's insert)
+//! to `finished` (the merging worker's), so it holds the claims, the pieces' first-pass
+//! radius traces, the results' round trips and the merge: everything the farm adds to the
+//! passes. The job is polled every 250 ms (`--poll-ms`): a tighter poll is CPU the API and
+//! PostgreSQL take from the workers, on a machine whose cores the workers fill.
 //!
 //!     cargo build --release && cargo run --release --example farm_passes --
 //!         [--workers 1,2] [--passes 32] [--photons 50000] [--width 128] [--height 96]
 //!         [--scene cornell_mirror_glass] [--bin target/release/photonbox] [--radius R]
+//!         [--poll-ms 250] [--ceiling]
 //!
 //! `--radius`: the job's initial ppm radius, given (then no piece traces pass 1's photons
 //! for it: what a second worker's first piece otherwise adds).
 //!
+//! `--ceiling`: after each run of 2 workers, the machine's own ceiling for it, measured at
+//! that moment without the farm: the same job by `photonbox render --threads 1` alone, then
+//! two such renders at once; two at once over one alone is the most two workers can gain.
+//!
 //! Prints the seconds and passes per second per worker count, the speed-up over one
-//! worker, and whether every run gave the same EXR bytes.
+//! worker (each run over the 1-worker run before it, and their median), the ceilings, and
+//! whether every run gave the same EXR bytes.
 
 #[path = "../tests/farm/pg.rs"]
 #[allow(dead_code)]
@@ -23,7 +31,7 @@ mod pg;
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{Context, bail};
 use serde_json::{Value, json};
@@ -37,6 +45,8 @@ struct Args {
     scene: String,
     bin: PathBuf,
     radius: Option<f32>,
+    poll: Duration,
+    ceiling: bool,
 }
 
 fn parse_args() -> anyhow::Result<Args> {
@@ -55,9 +65,15 @@ fn parse_args() -> anyhow::Result<Args> {
         scene: "cornell_mirror_glass".into(),
         bin,
         radius: None,
+        poll: Duration::from_millis(250),
+        ceiling: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
+        if flag == "--ceiling" {
+            a.ceiling = true;
+            continue;
+        }
         let value = it.next().with_context(|| format!("{flag} needs a value"))?;
         match flag.as_str() {
             "--workers" => {
@@ -73,6 +89,7 @@ fn parse_args() -> anyhow::Result<Args> {
             "--scene" => a.scene = value,
             "--bin" => a.bin = value.into(),
             "--radius" => a.radius = Some(value.parse().context("--radius")?),
+            "--poll-ms" => a.poll = Duration::from_millis(value.parse().context("--poll-ms")?),
             _ => bail!("unknown flag {flag}"),
         }
     }
@@ -154,7 +171,6 @@ fn run(a: &Args, cluster: &pg::Cluster, workers: usize) -> anyhow::Result<(f64, 
         params["radius"] = json!(r);
     }
     let body = json!({"scene_name": a.scene, "params": params});
-    let t0 = Instant::now();
     let r: Value = http
         .post(format!("{base}/api/jobs"))
         .bearer_auth(&token)
@@ -162,19 +178,21 @@ fn run(a: &Args, cluster: &pg::Cluster, workers: usize) -> anyhow::Result<(f64, 
         .send()?
         .json()?;
     let id = r["id"].as_i64().with_context(|| format!("submit: {r}"))?;
-    loop {
+    let seconds = loop {
         let job: Value = http
             .get(format!("{base}/api/jobs/{id}"))
             .bearer_auth(&token)
             .send()?
             .json()?;
         match job["status"].as_str() {
-            Some("done") => break,
-            Some("queued" | "running") => std::thread::sleep(Duration::from_millis(20)),
+            Some("done") => match (job["created"].as_f64(), job["finished"].as_f64()) {
+                (Some(c), Some(f)) => break f - c,
+                _ => bail!("a done job without its times: {job}"),
+            },
+            Some("queued" | "running") => std::thread::sleep(a.poll),
             _ => bail!("the job ended: {job}"),
         }
-    }
-    let seconds = t0.elapsed().as_secs_f64();
+    };
     let exr = http
         .get(format!("{base}/api/jobs/{id}/image.exr"))
         .bearer_auth(&token)
@@ -182,6 +200,38 @@ fn run(a: &Args, cluster: &pg::Cluster, workers: usize) -> anyhow::Result<(f64, 
         .bytes()?
         .to_vec();
     Ok((seconds, exr))
+}
+
+/// Seconds of `photonbox render --threads 1` of the job, `n` of them at once (the slowest).
+fn plain_renders(a: &Args, n: usize) -> anyhow::Result<f64> {
+    let scene = format!("scenes/{}.json", a.scene);
+    let start = std::time::Instant::now();
+    let children = (0..n)
+        .map(|i| {
+            let p = a.photons.to_string();
+            Command::new(&a.bin)
+                .args(["render", &scene, "--integrator", "ppm", "--threads", "1"])
+                .args(["--photons", &p, "--caustic-photons", &p])
+                .args(["--iterations", &a.passes.to_string()])
+                .args([
+                    "--width",
+                    &a.width.to_string(),
+                    "--height",
+                    &a.height.to_string(),
+                ])
+                .arg("-o")
+                .arg(std::env::temp_dir().join(format!("farm_passes_ceiling{i}.png")))
+                .stdout(Stdio::null())
+                .spawn()
+                .map(Proc)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    for mut c in children {
+        if !c.0.wait()?.success() {
+            bail!("photonbox render failed");
+        }
+    }
+    Ok(start.elapsed().as_secs_f64())
 }
 
 fn main() -> anyhow::Result<()> {
@@ -197,6 +247,7 @@ fn main() -> anyhow::Result<()> {
     let mut same = true;
     let mut last_one: Option<f64> = None;
     let mut times: std::collections::BTreeMap<usize, Vec<f64>> = Default::default();
+    let (mut pairs, mut ceilings) = (Vec::new(), Vec::new());
     for &w in &a.workers {
         let (seconds, exr) = run(&a, &cluster, w)?;
         same &= *exr0.get_or_insert(exr.clone()) == exr;
@@ -209,10 +260,20 @@ fn main() -> anyhow::Result<()> {
             a.passes as f64 / seconds
         );
         times.entry(w).or_default().push(seconds);
+        if let (2, Some(one)) = (w, last_one) {
+            pairs.push(one / seconds);
+        }
+        if a.ceiling && w == 2 {
+            let (alone, two) = (plain_renders(&a, 1)?, plain_renders(&a, 2)?);
+            let c = 2.0 * alone / two;
+            println!("| ceiling | {alone:.2} alone, {two:.2} two at once | - | {c:.2}x |");
+            ceilings.push(c);
+        }
     }
     let median = |v: &mut Vec<f64>| {
         v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
+        let n = v.len();
+        (v[(n - 1) / 2] + v[n / 2]) / 2.0
     };
     let one = times.get_mut(&1).map(median);
     for (w, v) in &mut times {
@@ -221,6 +282,20 @@ fn main() -> anyhow::Result<()> {
         println!(
             "median of {} runs with {w} workers: {m:.2} s, {ratio} one worker's",
             v.len()
+        );
+    }
+    if !pairs.is_empty() {
+        println!(
+            "median speed-up of 2 workers over the 1-worker run before, of {} runs: {:.2}x",
+            pairs.len(),
+            median(&mut pairs)
+        );
+    }
+    if !ceilings.is_empty() {
+        println!(
+            "median ceiling (two plain renders at once), of {}: {:.2}x",
+            ceilings.len(),
+            median(&mut ceilings)
         );
     }
     println!("same EXR bytes from every run: {same}");
