@@ -176,6 +176,40 @@ fn a_cancel_reaches_the_worker_within_a_second(kind: Kind) {
 }
 both!(a_cancel_reaches_the_worker_within_a_second);
 
+/// A split job's cancel reaches every worker rendering a piece of it: the three are all
+/// free for other work within a second (each takes one of three long jobs submitted
+/// after the cancel, so all three are running only once every worker has stopped).
+#[test]
+fn a_cancel_reaches_every_worker_of_a_split_job_within_a_second() {
+    let d = Deployment::start(Kind::Postgres, 3);
+    let (api, admin) = (&d.api, &d.admin);
+    // Pieces of one pass that take seconds each on one thread.
+    let mut params = slow_ppm_params();
+    params["photons"] = json!(3_000_000);
+    params["caustic_photons"] = json!(3_000_000);
+    let id = api.submit(admin, params);
+    store_query(d.store(), async |pool| {
+        for w in ["w0", "w1", "w2"] {
+            await_lease(pool, w).await;
+        }
+    });
+    assert_eq!(api.delete_job(admin, id), 200);
+    let t0 = Instant::now();
+    let mut long = ppm_params();
+    long["iterations"] = json!(100000);
+    long["time_limit"] = json!(600);
+    let next: Vec<i64> = (0..3).map(|_| api.submit(admin, long.clone())).collect();
+    for &n in &next {
+        api.wait(admin, n, Duration::from_secs(1), |j| j["status"] == "running");
+    }
+    assert!(
+        t0.elapsed() < Duration::from_secs(1),
+        "the three workers were free after {:?}",
+        t0.elapsed()
+    );
+    assert_eq!(api.job(admin, id)["status"], "cancelled");
+}
+
 fn an_acknowledged_job_survives_the_api_killed_and_the_store_restarted(kind: Kind) {
     let mut d = Deployment::start(kind, 1);
     // Acknowledged (202), then the API (on one box, the server) SIGKILLed and the store's
