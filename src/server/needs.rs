@@ -76,6 +76,9 @@ impl JobNeeds {
     pub fn check(&self, spec: &RenderSpec, limits: &Limits) -> Result<(), ApiError> {
         // The spec's fields as the API names them: no integrator is special here.
         let f = SpecForm::of(spec);
+        // Passes until a time limit is spent: the time bounds their number, so it is not
+        // counted against the pass limit, and one pass's work must fit the work limit.
+        let until_time = spec.stop().filter(|s| s.until_time());
         // (field, what the job asks, the limit, what is counted)
         let counts: [(&str, Option<u64>, u64, &str); 6] = [
             (
@@ -99,7 +102,7 @@ impl JobNeeds {
             ),
             (
                 "params.iterations",
-                f.iterations.map(u64::from),
+                f.iterations.filter(|_| until_time.is_none()).map(u64::from),
                 limits.max_iterations as u64,
                 "passes",
             ),
@@ -121,14 +124,15 @@ impl JobNeeds {
             }
         }
         let needs = &self.render;
-        if needs.work > limits.max_work {
+        let work = until_time.map_or(needs.work, |s| needs.work / s.iterations as f64);
+        if work > limits.max_work {
             return Err(ApiError::invalid(
                 "params",
                 format!(
                     "this job is an estimated {:.3e} ray samples of work (pixels x spp x (1 + \
                      gather_rays), photons, passes), more than the server's limit of {:.3e} \
                      (fewer samples, gather rays, pixels, photons or passes would fit)",
-                    needs.work, limits.max_work
+                    work, limits.max_work
                 ),
             ));
         }

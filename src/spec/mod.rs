@@ -153,6 +153,13 @@ impl Stop {
             target_error: None,
         }
     }
+
+    /// Whether passes run until the time limit is spent: a time limit given without a pass
+    /// count, which the spec records as the most passes a render may run
+    /// ([`MAX_ITERATIONS`]).
+    pub fn until_time(&self) -> bool {
+        self.time_limit.is_some() && self.iterations == MAX_ITERATIONS
+    }
 }
 
 /// Which first-hit photons the global map keeps (the seed's tri-state).

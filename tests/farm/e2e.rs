@@ -200,7 +200,9 @@ fn a_cancel_reaches_every_worker_of_a_split_job_within_a_second() {
     long["time_limit"] = json!(600);
     let next: Vec<i64> = (0..3).map(|_| api.submit(admin, long.clone())).collect();
     for &n in &next {
-        api.wait(admin, n, Duration::from_secs(1), |j| j["status"] == "running");
+        api.wait(admin, n, Duration::from_secs(1), |j| {
+            j["status"] == "running"
+        });
     }
     assert!(
         t0.elapsed() < Duration::from_secs(1),

@@ -38,6 +38,60 @@ fn a_job_over_the_compute_limit_is_refused_with_its_estimate() {
     assert_eq!(status, 202, "{v}");
 }
 
+/// A time limit without a pass count runs passes until the time is spent (issue 20, item
+/// 5): the pass limit counts the passes a job asks for, and such a job asks for none.
+#[test]
+fn a_time_limit_alone_runs_passes_until_it_is_spent() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let small = json!({"integrator": "ppm", "width": 16, "height": 12, "photons": 500,
+                       "caustic_photons": 500});
+    let mut timed = small.clone();
+    timed["time_limit"] = json!(0.5);
+    let id = run_to_done(
+        &s,
+        &s.admin,
+        json!({"scene_name": "cornell", "params": timed}),
+    );
+    let (_, job) = get(&s, &s.admin, &format!("/api/jobs/{id}"));
+    let passes = &job["stats"]["ppm"];
+    assert_eq!(passes["stopped_by"], "time_limit", "{job}");
+    // Far more passes than the default 16 fit in half a second of passes this small.
+    assert!(passes["passes"].as_u64().unwrap() > 16, "{job}");
+    // A pass count over the limit is still refused, with or without a time limit.
+    let mut many = small;
+    many["iterations"] = json!(200_000);
+    many["time_limit"] = json!(0.5);
+    let (status, v) = post(
+        &s,
+        &s.admin,
+        &json!({"scene_name": "cornell", "params": many}),
+    );
+    assert_eq!(
+        (status, v["path"].as_str()),
+        (422, Some("params.iterations")),
+        "{v}"
+    );
+    // The work limit counts one pass of such a job: 2048^2 samples of pt a pass fit (as a
+    // million passes they would not), a pass of 10^15 samples does not.
+    let big = json!({"integrator": "pt", "width": 2048, "height": 2048, "time_limit": 60});
+    let (status, v) = post(
+        &s,
+        &s.admin,
+        &json!({"scene_name": "cornell", "params": big}),
+    );
+    assert_eq!(status, 202, "{v}");
+    delete(&s, &s.admin, v["id"].as_i64().unwrap());
+    let huge = json!({"integrator": "ppm", "width": 4096, "height": 4096, "spp": 4096,
+                      "gather_rays": 14000, "time_limit": 60});
+    let (status, v) = post(
+        &s,
+        &s.admin,
+        &json!({"scene_name": "cornell", "params": huge}),
+    );
+    assert_eq!((status, v["path"].as_str()), (422, Some("params")), "{v}");
+}
+
 #[test]
 fn downloads_are_streamed_with_range_and_head() {
     let dir = tempfile::tempdir().unwrap();

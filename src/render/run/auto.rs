@@ -19,7 +19,7 @@
 
 use crate::render::scene::Scene;
 use crate::render::stats::Effect;
-use crate::spec::{Integrator, MAX_ITERATIONS, Merging, Passes, PhotonMapping};
+use crate::spec::{Integrator, Merging, Passes, PhotonMapping};
 
 /// Photon-mapping settings from small to large, (emitted photons per map, final-gather
 /// rays, samples per pixel): the race's ladder, along which the error against the
@@ -77,7 +77,7 @@ fn photon_for_budget(seconds: f64, pixels: u64) -> Option<PhotonMapping> {
 pub(super) fn budget_photon(passes: &Passes, pixels: u64) -> Option<PhotonMapping> {
     let stop = &passes.stop;
     match (stop.time_limit, stop.target_error) {
-        (Some(t), None) if stop.iterations == MAX_ITERATIONS => photon_for_budget(t, pixels),
+        (Some(t), None) if stop.until_time() => photon_for_budget(t, pixels),
         _ => None,
     }
 }
