@@ -121,9 +121,9 @@ pub(super) fn snapshot(job: &FarmJob, now: f64) -> Snapshot {
     }
 }
 
+/// A job id from the path: anything else names no job (404, as on one box).
 pub(super) fn job_id(raw: &str) -> Result<i64, ApiError> {
-    raw.parse()
-        .map_err(|_| ApiError::invalid("id", format!("{raw:?} is not a job id")))
+    raw.parse().map_err(|_| ApiError::not_found("job"))
 }
 
 async fn submit(

@@ -37,10 +37,15 @@ pub fn token_hash(token: &str) -> String {
     sha256_hex(token.as_bytes())
 }
 
-/// The bearer token of a request, if it carries one.
+/// The bearer token of a request, if it carries exactly one (two Authorization headers
+/// are ambiguous credentials: refused, whichever is valid).
 pub fn bearer(headers: &HeaderMap) -> Result<&str, ApiError> {
-    headers
-        .get(axum::http::header::AUTHORIZATION)
+    let mut all = headers.get_all(axum::http::header::AUTHORIZATION).iter();
+    let first = all.next();
+    if all.next().is_some() {
+        return Err(ApiError::unauthorized());
+    }
+    first
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.strip_prefix("Bearer "))
         .map(str::trim)

@@ -118,3 +118,35 @@ fn the_gallery_and_the_api_it_reads_are_served(kind: Kind) {
     );
 }
 both!(the_gallery_and_the_api_it_reads_are_served);
+
+/// What is not a job id names no job, and two Authorization headers are refused even when
+/// one of them is valid: the same answers from either store.
+fn bad_ids_and_doubled_tokens_get_the_same_answers(kind: Kind) {
+    let d = Deployment::start(kind, 1);
+    let (api, admin) = (&d.api, &d.admin);
+    for path in [
+        "/api/jobs/abc",
+        "/api/jobs/1e3",
+        "/api/jobs/9223372036854775808",
+        "/api/jobs/abc/image.png",
+        "/api/jobs/abc/events",
+    ] {
+        let (status, body) = api.get(admin, path);
+        let v: Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(
+            (status, v["error"].as_str()),
+            (404, Some("job not found")),
+            "{path}"
+        );
+    }
+    let r = client()
+        .get(format!("{}/api/me", api.base))
+        .header("Authorization", format!("Bearer {admin}"))
+        .header("Authorization", "Bearer bad")
+        .send()
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 401);
+    let (status, _) = api.get(admin, "/api/me");
+    assert_eq!(status, 200);
+}
+both!(bad_ids_and_doubled_tokens_get_the_same_answers);
