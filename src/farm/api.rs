@@ -16,6 +16,7 @@ use axum::routing::get;
 use axum::{Json, Router};
 use serde_json::{Value, json};
 
+use super::download::final_image;
 use super::preview::{Encoding, Previews};
 use super::task::split;
 use super::{FarmError, FarmJob, OverLimit, Queue, UserLimits, epoch_seconds};
@@ -263,13 +264,8 @@ async fn image(
     let row = visible_job(&api, &user, job_id(&id)?).await?.row;
     let exr = encoding == Encoding::Exr;
     if row.status.is_final() {
-        let bytes = api
-            .queue
-            .job_image(row.id, exr)
-            .await
-            .map_err(store_error)?;
-        if let Some(b) = bytes {
-            return Ok(([(header::CONTENT_TYPE, mime)], b).into_response());
+        if let Some(r) = final_image(&api.queue, row.id, exr, mime, &headers).await? {
+            return Ok(r);
         }
     } else if let Some(preview) = preview(&api, &row, encoding).await? {
         let headers = [

@@ -8,6 +8,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 pub mod api;
+mod download;
 mod events;
 mod jobs;
 pub mod outcome;

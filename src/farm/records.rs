@@ -295,6 +295,43 @@ impl Queue {
         Ok(true)
     }
 
+    /// The length of a finished job's image (`exr` or `png`), if it has one.
+    pub async fn job_image_len(&self, id: i64, exr: bool) -> Result<Option<u64>, FarmError> {
+        let sql = if exr {
+            "SELECT octet_length(result_exr)::int8 FROM jobs WHERE id = $1"
+        } else {
+            "SELECT octet_length(result_png)::int8 FROM jobs WHERE id = $1"
+        };
+        let len: Option<Option<i64>> = sqlx::query_scalar(sql)
+            .bind(id)
+            .fetch_optional(self.pool())
+            .await?;
+        Ok(len.flatten().map(|n| n as u64))
+    }
+
+    /// Bytes `start..start + len` of a finished job's image: the images are stored
+    /// uncompressed (migration 0004), so PostgreSQL reads only the slices' own chunks.
+    pub async fn job_image_part(
+        &self,
+        id: i64,
+        exr: bool,
+        start: u64,
+        len: u64,
+    ) -> Result<Option<Vec<u8>>, FarmError> {
+        let sql = if exr {
+            "SELECT substring(result_exr FROM $2 FOR $3) FROM jobs WHERE id = $1"
+        } else {
+            "SELECT substring(result_png FROM $2 FOR $3) FROM jobs WHERE id = $1"
+        };
+        let bytes: Option<Option<Vec<u8>>> = sqlx::query_scalar(sql)
+            .bind(id)
+            .bind(start as i32 + 1)
+            .bind(len as i32)
+            .fetch_optional(self.pool())
+            .await?;
+        Ok(bytes.flatten())
+    }
+
     /// A finished job's image (`exr` or `png`).
     pub async fn job_image(&self, id: i64, exr: bool) -> Result<Option<Vec<u8>>, FarmError> {
         let sql = if exr {

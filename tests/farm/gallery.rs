@@ -150,3 +150,54 @@ fn bad_ids_and_doubled_tokens_get_the_same_answers(kind: Kind) {
     assert_eq!(status, 200);
 }
 both!(bad_ids_and_doubled_tokens_get_the_same_answers);
+
+/// A finished job's image in ranges, as one box's file server gives them, and its length
+/// by HEAD: the same answers from either store (the farm streams it out of the store).
+fn a_finished_image_is_served_in_ranges(kind: Kind) {
+    let d = Deployment::start(kind, 1);
+    let (api, admin) = (&d.api, &d.admin);
+    let id = api.submit(admin, ppm_params());
+    let whole = api.wait_done(admin, id);
+    let len = whole.len();
+    let url = format!("{}/api/jobs/{id}/image.exr", api.base);
+    let ranged = |range: &str| {
+        let r = client()
+            .get(&url)
+            .bearer_auth(admin)
+            .header("Range", range)
+            .send()
+            .unwrap();
+        let status = r.status().as_u16();
+        let content_range = r
+            .headers()
+            .get("content-range")
+            .map(|v| v.to_str().unwrap().to_string());
+        (status, content_range, r.bytes().unwrap().to_vec())
+    };
+    assert_eq!(
+        ranged("bytes=0-10"),
+        (206, Some(format!("bytes 0-10/{len}")), whole[..11].to_vec())
+    );
+    let tail = format!("bytes {}-{}/{len}", len - 5, len - 1);
+    assert_eq!(
+        ranged("bytes=-5"),
+        (206, Some(tail), whole[len - 5..].to_vec())
+    );
+    for bad in [
+        "bytes=5-1".to_string(),
+        format!("bytes={len}-"),
+        "bytes=abc".into(),
+    ] {
+        let (status, content_range, _) = ranged(&bad);
+        assert_eq!(
+            (status, content_range),
+            (416, Some(format!("bytes */{len}"))),
+            "{bad}"
+        );
+    }
+    let r = client().head(&url).bearer_auth(admin).send().unwrap();
+    assert_eq!(r.status().as_u16(), 200);
+    assert_eq!(r.headers()["accept-ranges"], "bytes");
+    assert_eq!(r.headers()["content-length"], len.to_string().as_str());
+}
+both!(a_finished_image_is_served_in_ranges);
