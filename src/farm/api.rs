@@ -72,7 +72,7 @@ pub fn router(api: ApiRef) -> Router {
         .with_state(api)
 }
 
-fn store_error(e: FarmError) -> ApiError {
+pub(super) fn store_error(e: FarmError) -> ApiError {
     ApiError::new(
         StatusCode::SERVICE_UNAVAILABLE,
         None,

@@ -9,6 +9,7 @@ use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
 use super::Queue;
+use super::api::store_error;
 use crate::server::error::ApiError;
 
 /// Bytes read from the store at a time.
@@ -22,13 +23,6 @@ pub(super) async fn final_image(
     mime: &'static str,
     headers: &HeaderMap,
 ) -> Result<Option<Response>, ApiError> {
-    let store_error = |e: super::FarmError| {
-        ApiError::new(
-            StatusCode::SERVICE_UNAVAILABLE,
-            None,
-            format!("the store: {e}"),
-        )
-    };
     let Some(len) = queue.job_image_len(id, exr).await.map_err(store_error)? else {
         return Ok(None);
     };
