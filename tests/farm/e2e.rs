@@ -98,10 +98,13 @@ fn a_worker_cut_off_from_the_store_has_its_stale_result_refused() {
     let cut_url = store.replacen("postgres://photonbox@", "postgres://cut@", 1);
     let (api, admin) = start_api(&store);
     let admin = admin.unwrap();
-    let _cut = start_worker(&cut_url, "cut", 1.0);
-    let id = api.submit(&admin, slow_ppm_params());
+    // A short lease: heartbeats every 0.1 s, in tasks of about a second.
+    let _cut = start_worker(&cut_url, "cut", 0.3);
+    let params = long_task_ppm_params();
+    let id = api.submit(&admin, params.clone());
     store_query(&store, async move |pool| {
-        await_lease(pool, "cut").await;
+        // Rendering, not still reading the job (cut off then, it would have no result).
+        await_heartbeat(pool, "cut").await;
         // Cut it off: no new logins, its connections terminated.
         sqlx::raw_sql(
             "ALTER ROLE cut NOLOGIN;
@@ -127,7 +130,7 @@ fn a_worker_cut_off_from_the_store_has_its_stale_result_refused() {
     // Another worker finishes the job, the cut-off worker's task included.
     let _other = start_worker(&store, "other", 10.0);
     let farm = api.wait_done(&admin, id);
-    assert!(farm == slow_one_box_exr());
+    assert!(farm == render_one_box(&params));
     // Let it back: it hands its (stale) result in, and the fence refuses it.
     store_query(&store, async |pool| {
         sqlx::raw_sql("ALTER ROLE cut LOGIN")
@@ -144,6 +147,40 @@ fn a_worker_cut_off_from_the_store_has_its_stale_result_refused() {
         std::thread::sleep(Duration::from_millis(100));
     }
     assert!(api.get(&admin, &format!("/api/jobs/{id}/image.exr")).1 == farm);
+}
+
+/// `slow_ppm_params` in 4 tasks of about a second each (one pass each, 4x the photons).
+fn long_task_ppm_params() -> serde_json::Value {
+    let mut params = slow_ppm_params();
+    params["photons"] = json!(1_200_000);
+    params["caustic_photons"] = json!(1_200_000);
+    params["iterations"] = json!(4);
+    params
+}
+
+/// Wait (at most a minute) until worker `worker` has extended a lease it holds: it sends
+/// heartbeats only while it renders the task.
+async fn await_heartbeat(pool: &sqlx::PgPool, worker: &str) {
+    let lease_until = async || -> Option<f64> {
+        sqlx::query_scalar(
+            "SELECT extract(epoch FROM lease_until)::float8 FROM tasks
+              WHERE worker = $1 AND state = 'leased'",
+        )
+        .bind(worker)
+        .fetch_optional(pool)
+        .await
+        .unwrap()
+    };
+    await_lease(pool, worker).await;
+    let first = lease_until().await;
+    let t0 = Instant::now();
+    while lease_until().await == first {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "{worker} never extended its lease {first:?}"
+        );
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
 }
 
 fn a_cancel_reaches_the_worker_within_a_second(kind: Kind) {
