@@ -9,9 +9,7 @@ use std::f64::consts::PI;
 
 use common::{analytic_pixels, point_lit, rel, render_checked, scene};
 use glam::DVec3;
-use photonbox::spec::{
-    Integrator, MAX_ITERATIONS, Merging, Passes, PhotonMapping, RenderSpec, Stop,
-};
+use photonbox::spec::{Integrator, Merging, Passes, PhotonMapping, RenderSpec, Stop};
 
 /// Every integrator of the family, with `passes` passes of one sample per pixel.
 fn family(passes: u32) -> [(&'static str, RenderSpec); 4] {
@@ -180,7 +178,7 @@ fn auto_takes_a_photon_render_for_a_short_budget_on_glass() {
     let timed = |seconds: f64| Passes {
         spp: 1,
         stop: Stop {
-            iterations: MAX_ITERATIONS,
+            iterations: None,
             time_limit: Some(seconds),
             target_error: None,
         },
@@ -211,7 +209,7 @@ fn auto_takes_a_photon_render_for_a_short_budget_on_glass() {
         &RenderSpec::new(Integrator::Auto(Passes {
             spp: 1,
             stop: Stop {
-                iterations: 2,
+                iterations: Some(2),
                 time_limit: Some(1.0),
                 target_error: None,
             },

@@ -120,7 +120,7 @@ pub(crate) fn run_passes(
             (state, &piece_stop)
         }
     };
-    let tracker = control.tracker(Phase::Passes, stop.iterations as u64);
+    let tracker = control.tracker(Phase::Passes, stop.pass_limit() as u64);
     tracker.advance(state.passes as u64);
     // The error of the image so far against this render's reference (a resumed state's
     // recorded error may be against another one).
@@ -202,7 +202,7 @@ fn check_piece(piece: Piece, run: &ProgressiveRun) -> Result<Stop, RenderError> 
     if piece.first == 0 || piece.count == 0 || piece.first.checked_add(piece.count).is_none() {
         return input("a piece of passes starts at pass 1 or later and has at least one");
     }
-    if piece.last() > run.stop.iterations {
+    if piece.last() > run.stop.pass_limit() {
         return input("a piece of passes ends after the render's last pass");
     }
     if run.stop.time_limit.is_some() || run.stop.target_error.is_some() {
@@ -267,7 +267,7 @@ fn start_state(
 
 /// Whether to stop before another pass.
 fn should_stop(state: &PpmState, stop: &Stop, error: Option<ImageError>) -> Option<StopReason> {
-    if state.passes >= stop.iterations {
+    if state.passes >= stop.pass_limit() {
         return Some(StopReason::Iterations);
     }
     if state.passes == 0 {

@@ -76,9 +76,6 @@ impl JobNeeds {
     pub fn check(&self, spec: &RenderSpec, limits: &Limits) -> Result<(), ApiError> {
         // The spec's fields as the API names them: no integrator is special here.
         let f = SpecForm::of(spec);
-        // Passes until a time limit is spent: the time bounds their number, so it is not
-        // counted against the pass limit, and one pass's work must fit the work limit.
-        let until_time = spec.stop().filter(|s| s.until_time());
         // (field, what the job asks, the limit, what is counted)
         let counts: [(&str, Option<u64>, u64, &str); 6] = [
             (
@@ -102,7 +99,7 @@ impl JobNeeds {
             ),
             (
                 "params.iterations",
-                f.iterations.filter(|_| until_time.is_none()).map(u64::from),
+                f.iterations.map(u64::from),
                 limits.max_iterations as u64,
                 "passes",
             ),
@@ -123,13 +120,24 @@ impl JobNeeds {
                 ));
             }
         }
+        self.check_estimates(spec, limits)
+    }
+
+    /// The estimated work and memory against the server's limits.
+    fn check_estimates(&self, spec: &RenderSpec, limits: &Limits) -> Result<(), ApiError> {
         let needs = &self.render;
-        let work = until_time.map_or(needs.work, |s| needs.work / s.iterations as f64);
+        let work = needs.work;
+        // Passes until a time limit is spent: the time bounds their number, and the work
+        // counted is one pass's (`Needs::work`).
+        let what = match spec.stop().is_some_and(|s| s.until_time()) {
+            true => "one pass of this job",
+            false => "this job",
+        };
         if work > limits.max_work {
             return Err(ApiError::invalid(
                 "params",
                 format!(
-                    "this job is an estimated {:.3e} ray samples of work (pixels x spp x (1 + \
+                    "{what} is an estimated {:.3e} ray samples of work (pixels x spp x (1 + \
                      gather_rays), photons, passes), more than the server's limit of {:.3e} \
                      (fewer samples, gather rays, pixels, photons or passes would fit)",
                     work, limits.max_work

@@ -135,8 +135,8 @@ impl JobRender<'_> {
     /// After a progressive pass: the preview images and the state, each replaced
     /// atomically, a `preview` event, and whether to give way to another user.
     fn after_pass(&self, state: &PpmState, live: &watch::Sender<Snapshot>) -> ControlFlow<()> {
-        let last = self.spec.render.stop().map(|s| s.iterations);
-        if Some(state.passes) >= last {
+        let last = self.spec.render.stop().and_then(|s| s.iterations);
+        if last.is_some_and(|last| state.passes >= last) {
             // The last pass's image is the result, which the runner writes.
             return ControlFlow::Continue(());
         }

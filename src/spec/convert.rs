@@ -108,11 +108,11 @@ impl SpecForm {
 
     /// A progressive render's stop: a time limit alone runs passes until it is spent.
     fn fill_stop(&self, stop: &mut Stop) {
-        let untimed = stop.iterations;
-        stop.iterations = self.iterations.unwrap_or(match self.time_limit {
-            Some(_) => super::rules::MAX_ITERATIONS,
-            None => untimed,
-        });
+        stop.iterations = match (self.iterations, self.time_limit) {
+            (Some(n), _) => Some(n),
+            (None, Some(_)) => None,
+            (None, None) => stop.iterations,
+        };
         stop.time_limit = self.time_limit;
         stop.target_error = self.target_error;
     }
@@ -180,7 +180,7 @@ impl SpecForm {
     }
 
     fn set_stop(&mut self, stop: &Stop) {
-        self.iterations = Some(stop.iterations);
+        self.iterations = stop.iterations;
         (self.time_limit, self.target_error) = (stop.time_limit, stop.target_error);
     }
 

@@ -43,7 +43,7 @@ impl Progressive {
         alpha: 0.7,
         radius: None,
         stop: Stop {
-            iterations: 16,
+            iterations: Some(16),
             time_limit: None,
             target_error: None,
         },
@@ -55,7 +55,7 @@ impl Passes {
     pub const DEFAULT: Passes = Passes {
         spp: 1,
         stop: Stop {
-            iterations: 16,
+            iterations: Some(16),
             time_limit: None,
             target_error: None,
         },

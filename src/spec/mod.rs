@@ -135,8 +135,9 @@ pub struct Progressive {
 /// When a progressive render stops: the first condition met wins; at least one pass runs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Stop {
-    /// Passes in all (counting those of a resumed state).
-    pub iterations: u32,
+    /// Passes in all (counting those of a resumed state); `None`: as many as the time limit
+    /// allows (a time limit is then set), at most [`MAX_ITERATIONS`].
+    pub iterations: Option<u32>,
     /// Seconds of passes in all: no pass starts that would, at the mean pass time so far,
     /// end after this.
     pub time_limit: Option<f64>,
@@ -148,17 +149,21 @@ impl Stop {
     /// Stop after `iterations` passes, and on nothing else.
     pub fn after(iterations: u32) -> Stop {
         Stop {
-            iterations,
+            iterations: Some(iterations),
             time_limit: None,
             target_error: None,
         }
     }
 
     /// Whether passes run until the time limit is spent: a time limit given without a pass
-    /// count, which the spec records as the most passes a render may run
-    /// ([`MAX_ITERATIONS`]).
+    /// count.
     pub fn until_time(&self) -> bool {
-        self.time_limit.is_some() && self.iterations == MAX_ITERATIONS
+        self.iterations.is_none()
+    }
+
+    /// The most passes the render may run: its pass count, else the engine's most.
+    pub fn pass_limit(&self) -> u32 {
+        self.iterations.unwrap_or(MAX_ITERATIONS)
     }
 }
 
@@ -327,7 +332,8 @@ impl RenderSpec {
             return None;
         }
         let stop = self.stop()?;
-        (stop.time_limit.is_none() && stop.target_error.is_none()).then_some(stop.iterations)
+        stop.iterations
+            .filter(|_| stop.time_limit.is_none() && stop.target_error.is_none())
     }
 
     /// The output size: the override, else the scene camera's (`camera`).

@@ -58,6 +58,9 @@ fn a_time_limit_alone_runs_passes_until_it_is_spent() {
     assert_eq!(passes["stopped_by"], "time_limit", "{job}");
     // Far more passes than the default 16 fit in half a second of passes this small.
     assert!(passes["passes"].as_u64().unwrap() > 16, "{job}");
+    // The job's params say what was asked: no pass count (not the engine's most passes,
+    // which the pass limit would refuse were they sent again).
+    assert!(job["params"]["iterations"].is_null(), "{job}");
     // A pass count over the limit is still refused, with or without a time limit.
     let mut many = small;
     many["iterations"] = json!(200_000);
@@ -90,6 +93,8 @@ fn a_time_limit_alone_runs_passes_until_it_is_spent() {
         &json!({"scene_name": "cornell", "params": huge}),
     );
     assert_eq!((status, v["path"].as_str()), (422, Some("params")), "{v}");
+    let error = v["error"].as_str().unwrap();
+    assert!(error.starts_with("one pass of this job is"), "{v}");
 }
 
 #[test]

@@ -3,7 +3,7 @@
 //! phases (one progress fraction over a whole render).
 
 use crate::render::control::{Phase, Progress};
-use crate::spec::{Integrator, RenderSpec};
+use crate::spec::{Integrator, RenderSpec, Stop};
 
 /// What a render needs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -12,7 +12,8 @@ pub struct Needs {
     pub memory_bytes: u64,
     /// Work in ray-sized units: every camera sample and final-gather ray, every emitted
     /// photon, and (for `photon`) each k-NN neighbour of the irradiance precompute, times
-    /// the passes of a progressive render. An upper guide, not a prediction of seconds: it
+    /// the passes of a progressive render (one pass of a render that runs until its time
+    /// limit: the time, not the work, bounds it). An upper guide, not a prediction of seconds: it
     /// bounds what one render may take from a machine, whatever its parameters.
     pub work: f64,
     /// An upper estimate of the result files: the EXR (f32 RGBA), the PNG, and a
@@ -90,6 +91,12 @@ fn light_vertices(spec: &RenderSpec, pixels: u64) -> u64 {
     }
 }
 
+/// The passes a progressive render's work counts: its pass count, or one pass when it runs
+/// until its time limit.
+fn work_passes(stop: &Stop) -> f64 {
+    stop.iterations.map_or(1.0, f64::from)
+}
+
 fn work(spec: &RenderSpec, pixels: u64) -> f64 {
     let camera =
         |spp: u32, gather_rays: u32| pixels as f64 * spp as f64 * (1.0 + gather_rays as f64);
@@ -101,14 +108,14 @@ fn work(spec: &RenderSpec, pixels: u64) -> f64 {
         }
         Integrator::Ppm(p) => {
             let photons = (p.pass.photons + p.pass.caustic_photons) as f64;
-            (camera(p.pass.spp, p.pass.gather_rays) + photons) * p.stop.iterations as f64
+            (camera(p.pass.spp, p.pass.gather_rays) + photons) * work_passes(&p.stop)
         }
         // A light and a camera subpath per sample, each a few rays (the connections and
         // shadow rays of its vertices): counted as 8 rays a sample.
         Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) | Integrator::Auto(p) => {
-            camera(p.spp, 7) * p.stop.iterations as f64
+            camera(p.spp, 7) * work_passes(&p.stop)
         }
-        Integrator::Vcm(m) => camera(m.passes.spp, 7) * m.passes.stop.iterations as f64,
+        Integrator::Vcm(m) => camera(m.passes.spp, 7) * work_passes(&m.passes.stop),
     }
 }
 
@@ -139,14 +146,14 @@ impl ProgressModel {
             Integrator::Ppm(p) => {
                 let photons = (p.pass.photons + p.pass.caustic_photons) as f64;
                 let camera = samples(p.pass.spp, p.pass.gather_rays) / 3e6;
-                let passes = p.stop.iterations as f64;
+                let passes = p.stop.pass_limit() as f64;
                 ([photons / 3e6, photons / 1e7, 0.0, camera], passes)
             }
             // The camera pass carries a pass's progress (light subpaths are part of it).
             Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) | Integrator::Auto(p) => {
-                ([0.0, 0.0, 0.0, 1.0], p.stop.iterations as f64)
+                ([0.0, 0.0, 0.0, 1.0], p.stop.pass_limit() as f64)
             }
-            Integrator::Vcm(m) => ([0.0, 0.0, 0.0, 1.0], m.passes.stop.iterations as f64),
+            Integrator::Vcm(m) => ([0.0, 0.0, 0.0, 1.0], m.passes.stop.pass_limit() as f64),
         };
         ProgressModel { weights, passes }
     }
