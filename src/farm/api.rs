@@ -15,10 +15,13 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use axum::{Json, Router};
 use serde_json::{Value, json};
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
 
 use super::download::final_image;
 use super::preview::{Encoding, Previews};
 use super::task::split;
+use super::workers::WorkerList;
 use super::{FarmError, FarmJob, OverLimit, Queue, UserLimits, epoch_seconds};
 use crate::server::api::{scene_json, scene_list, visible};
 use crate::server::auth::{User, bearer, token_hash};
@@ -31,7 +34,7 @@ use crate::server::store::{JobRow, Status};
 use crate::server::submit::{
     Admitted, admit, check_reference, over_storage, queue_full, read_body,
 };
-use crate::server::views::{JobList, JobView, SceneList};
+use crate::server::views::{AuthErrors, ErrorBody, JobList, JobView, SceneList};
 use crate::server::web;
 
 /// One API instance's state.
@@ -49,15 +52,20 @@ type ApiRef = Arc<FarmApi>;
 /// gallery among them), and the farm's own (`/api/workers`).
 pub fn router(api: ApiRef) -> Router {
     let body_limit = api.limits.body_bytes;
-    let document = crate::server::api::document(&api.catalog);
+    // The one-box server's document, and the farm's own routes in it.
+    let (farm_routes, farm_paths) = OpenApiRouter::new()
+        .routes(routes!(workers))
+        .split_for_parts();
+    let mut document = crate::server::api::document(&api.catalog);
+    document.merge(farm_paths);
     Router::new()
+        .merge(farm_routes)
         .route("/api/jobs", get(list).post(submit))
         .route("/api/jobs/{id}", get(job).delete(delete))
         .route("/api/jobs/{id}/events", get(super::events::job_events))
         .route("/api/jobs/{id}/{file}", get(image))
         .route("/api/scenes", get(scenes))
         .route("/api/scenes/{name}", get(scene))
-        .route("/api/workers", get(workers))
         .route("/api/me", get(me))
         .route(
             "/api/openapi.json",
@@ -68,6 +76,7 @@ pub fn router(api: ApiRef) -> Router {
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .fallback(|| async { ApiError::not_found("route") })
+        .method_not_allowed_fallback(|| async { ApiError::method_not_allowed() })
         .layer(DefaultBodyLimit::max(body_limit))
         .with_state(api)
 }
@@ -110,6 +119,8 @@ pub(super) fn snapshot(job: &FarmJob, now: f64) -> Snapshot {
             let per_task = (now - started).max(0.0) / tasks.done as f64;
             Some(per_task * (tasks.total - tasks.done) as f64)
         }
+        // As one box says of a finished job.
+        _ if done => Some(0.0),
         _ => None,
     };
     Snapshot {
@@ -302,13 +313,20 @@ async fn preview(
         .map_err(|e| ApiError::internal(format!("the preview: {e}")))
 }
 
-async fn workers(State(api): State<ApiRef>, headers: HeaderMap) -> Result<Json<Value>, ApiError> {
+/// The farm's workers, each with its last heartbeat (admins only).
+#[utoipa::path(get, path = "/api/workers", tag = "farm", security(("bearer" = [])),
+    responses((status = 200, description = "Every worker of the farm", body = WorkerList),
+        (status = 403, description = "Not an admin", body = ErrorBody), AuthErrors))]
+async fn workers(
+    State(api): State<ApiRef>,
+    headers: HeaderMap,
+) -> Result<Json<WorkerList>, ApiError> {
     let user = user(&api, &headers).await?;
     if !user.admin {
         return Err(ApiError::new(StatusCode::FORBIDDEN, None, "admins only"));
     }
-    let rows = api.queue.workers().await.map_err(store_error)?;
-    Ok(Json(json!({ "workers": rows })))
+    let workers = api.queue.workers().await.map_err(store_error)?;
+    Ok(Json(WorkerList { workers }))
 }
 
 async fn me(State(api): State<ApiRef>, headers: HeaderMap) -> Result<Json<Value>, ApiError> {
@@ -358,7 +376,8 @@ mod tests {
     }
 
     /// The time left goes by the pace of the tasks done so far; none before a task is
-    /// done or once the job is not running; a done job is whole and shows its image.
+    /// done or while the job is queued; a done job is whole, shows its image and has no
+    /// time left (0, as one box says).
     #[test]
     fn a_running_job_s_eta_follows_its_tasks_pace() {
         let s = snapshot(&job(Status::Running, Some(100.0), 2, 10), 110.0);
@@ -372,6 +391,9 @@ mod tests {
         let s = snapshot(&job(Status::Queued, None, 0, 10), 110.0);
         assert_eq!((s.eta_seconds, s.phase), (None, None));
         let s = snapshot(&job(Status::Done, Some(100.0), 10, 10), 120.0);
-        assert_eq!((s.progress, s.eta_seconds, s.previews), (1.0, None, 10));
+        assert_eq!(
+            (s.progress, s.eta_seconds, s.previews),
+            (1.0, Some(0.0), 10)
+        );
     }
 }

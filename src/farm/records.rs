@@ -297,12 +297,9 @@ impl Queue {
 
     /// The length of a finished job's image (`exr` or `png`), if it has one.
     pub async fn job_image_len(&self, id: i64, exr: bool) -> Result<Option<u64>, FarmError> {
-        let sql = if exr {
-            "SELECT octet_length(result_exr)::int8 FROM jobs WHERE id = $1"
-        } else {
-            "SELECT octet_length(result_png)::int8 FROM jobs WHERE id = $1"
-        };
-        let len: Option<Option<i64>> = sqlx::query_scalar(sql)
+        let column = image_column(exr);
+        let sql = format!("SELECT octet_length({column})::int8 FROM jobs WHERE id = $1");
+        let len: Option<Option<i64>> = sqlx::query_scalar(sqlx::AssertSqlSafe(sql))
             .bind(id)
             .fetch_optional(self.pool())
             .await?;
@@ -311,6 +308,7 @@ impl Queue {
 
     /// Bytes `start..start + len` of a finished job's image: the images are stored
     /// uncompressed (migration 0004), so PostgreSQL reads only the slices' own chunks.
+    /// (Offsets are `int4` in SQL: a `bytea` holds at most 1 GB.)
     pub async fn job_image_part(
         &self,
         id: i64,
@@ -318,12 +316,9 @@ impl Queue {
         start: u64,
         len: u64,
     ) -> Result<Option<Vec<u8>>, FarmError> {
-        let sql = if exr {
-            "SELECT substring(result_exr FROM $2 FOR $3) FROM jobs WHERE id = $1"
-        } else {
-            "SELECT substring(result_png FROM $2 FOR $3) FROM jobs WHERE id = $1"
-        };
-        let bytes: Option<Option<Vec<u8>>> = sqlx::query_scalar(sql)
+        let column = image_column(exr);
+        let sql = format!("SELECT substring({column} FROM $2 FOR $3) FROM jobs WHERE id = $1");
+        let bytes: Option<Option<Vec<u8>>> = sqlx::query_scalar(sqlx::AssertSqlSafe(sql))
             .bind(id)
             .bind(start as i32 + 1)
             .bind(len as i32)
@@ -334,15 +329,16 @@ impl Queue {
 
     /// A finished job's image (`exr` or `png`).
     pub async fn job_image(&self, id: i64, exr: bool) -> Result<Option<Vec<u8>>, FarmError> {
-        let sql = if exr {
-            "SELECT result_exr FROM jobs WHERE id = $1"
-        } else {
-            "SELECT result_png FROM jobs WHERE id = $1"
-        };
-        let bytes: Option<Option<Vec<u8>>> = sqlx::query_scalar(sql)
+        let sql = format!("SELECT {} FROM jobs WHERE id = $1", image_column(exr));
+        let bytes: Option<Option<Vec<u8>>> = sqlx::query_scalar(sqlx::AssertSqlSafe(sql))
             .bind(id)
             .fetch_optional(self.pool())
             .await?;
         Ok(bytes.flatten())
     }
+}
+
+/// The column of a job's finished image (a fixed name: safe to put in the SQL).
+fn image_column(exr: bool) -> &'static str {
+    if exr { "result_exr" } else { "result_png" }
 }

@@ -6,8 +6,14 @@ use sqlx::Row;
 
 use super::{FarmError, Queue};
 
+/// The farm's workers (`GET /api/workers`).
+#[derive(serde::Serialize, utoipa::ToSchema)]
+pub struct WorkerList {
+    pub workers: Vec<WorkerRow>,
+}
+
 /// A worker as the registry has it.
-#[derive(serde::Serialize, Clone, Debug, PartialEq)]
+#[derive(serde::Serialize, utoipa::ToSchema, Clone, Debug, PartialEq)]
 pub struct WorkerRow {
     pub id: String,
     pub threads: i32,

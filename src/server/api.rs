@@ -54,6 +54,7 @@ pub fn router(app: AppRef) -> Router {
         .route("/", get(web::index))
         .route("/web/{file}", get(web::web_file))
         .fallback(|| async { ApiError::not_found("route") })
+        .method_not_allowed_fallback(|| async { ApiError::method_not_allowed() })
         .layer(DefaultBodyLimit::max(body_limit))
         .layer(middleware::from_fn_with_state(app.clone(), metrics::track))
         .with_state(app)

@@ -47,6 +47,31 @@ impl ApiError {
     pub fn internal(message: impl Into<String>) -> ApiError {
         ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, None, message)
     }
+
+    /// 405 on a route that exists (axum adds the `Allow` header).
+    pub fn method_not_allowed() -> ApiError {
+        ApiError::new(
+            StatusCode::METHOD_NOT_ALLOWED,
+            None,
+            "this route does not take that method (the Allow header lists those it takes)",
+        )
+    }
+}
+
+/// The most of a message, or of a path, that goes back to a client: errors quote what the
+/// client sent (a scene's name, a key, a value), which may be megabytes.
+const MAX_ECHO: usize = 1024;
+
+/// `s` cut to [`MAX_ECHO`] bytes (at a character boundary), saying how much was cut.
+fn bounded(mut s: String) -> String {
+    if s.len() > MAX_ECHO {
+        let end = (0..=MAX_ECHO).rev().find(|&i| s.is_char_boundary(i));
+        let end = end.unwrap_or(0);
+        let cut = s.len() - end;
+        s.truncate(end);
+        s.push_str(&format!("... ({cut} more bytes)"));
+    }
+    s
 }
 
 impl IntoResponse for ApiError {
@@ -65,8 +90,8 @@ impl IntoResponse for ApiError {
             return (self.status, Json(body)).into_response();
         }
         let body = ErrorBody {
-            error: self.message,
-            path: self.path,
+            error: bounded(self.message),
+            path: self.path.map(bounded),
             request_id: None,
         };
         (self.status, Json(body)).into_response()
@@ -101,7 +126,7 @@ mod tests {
             .build()
             .unwrap();
         let bytes = rt
-            .block_on(axum::body::to_bytes(resp.into_body(), 1 << 16))
+            .block_on(axum::body::to_bytes(resp.into_body(), 1 << 24))
             .unwrap();
         (status, serde_json::from_slice(&bytes).unwrap())
     }
@@ -128,5 +153,19 @@ mod tests {
         assert_eq!(status, 422);
         assert_eq!(v["path"], "params.k");
         assert_eq!(v["error"], "k must be at least 1");
+    }
+
+    #[test]
+    fn what_a_client_sent_is_echoed_at_most_a_kilobyte() {
+        let long = "é".repeat(300_000);
+        let (status, v) = body(ApiError::invalid(
+            format!("params.{long}"),
+            format!("no built-in scene named {long:?}"),
+        ));
+        assert_eq!(status, 422);
+        let (error, path) = (v["error"].as_str().unwrap(), v["path"].as_str().unwrap());
+        assert!(error.len() < 1100 && path.len() < 1100, "{}", error.len());
+        assert!(error.starts_with("no built-in scene named \"éé"), "{error}");
+        assert!(error.ends_with(" more bytes)"), "{error}");
     }
 }

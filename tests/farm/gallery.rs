@@ -64,6 +64,14 @@ fn the_gallery_and_the_api_it_reads_are_served(kind: Kind) {
     let doc = json(api, "", "/api/openapi.json");
     let defaults = &doc["components"]["schemas"]["Params"]["x-defaults"];
     assert!(defaults["ppm"].is_object(), "no ppm defaults: {defaults}");
+    // The farm's document has its own route too.
+    let farm_only = doc["paths"]["/api/workers"]["get"].is_object();
+    assert_eq!(
+        farm_only,
+        matches!(kind, Kind::Postgres),
+        "{}",
+        doc["paths"]
+    );
     let scenes = json(api, admin, "/api/scenes");
     let names: Vec<&str> = scenes["scenes"]
         .as_array()
@@ -83,6 +91,7 @@ fn the_gallery_and_the_api_it_reads_are_served(kind: Kind) {
     assert_eq!(job["owner"], "admin");
     assert_eq!(job["mine"], true);
     assert_eq!(job["progress"], 1.0);
+    assert_eq!(job["eta_seconds"], 0.0, "{job}");
     assert_eq!(job["links"]["png"], format!("/api/jobs/{id}/image.png"));
     assert_eq!(job["links"]["events"], format!("/api/jobs/{id}/events"));
     assert!(job["memory_estimate_bytes"].as_u64().unwrap() > 0, "{job}");
@@ -121,7 +130,7 @@ both!(the_gallery_and_the_api_it_reads_are_served);
 
 /// What is not a job id names no job, and two Authorization headers are refused even when
 /// one of them is valid: the same answers from either store.
-fn bad_ids_and_doubled_tokens_get_the_same_answers(kind: Kind) {
+fn bad_ids_methods_names_and_tokens_get_the_same_answers(kind: Kind) {
     let d = Deployment::start(kind, 1);
     let (api, admin) = (&d.api, &d.admin);
     for path in [
@@ -148,8 +157,31 @@ fn bad_ids_and_doubled_tokens_get_the_same_answers(kind: Kind) {
     assert_eq!(r.status().as_u16(), 401);
     let (status, _) = api.get(admin, "/api/me");
     assert_eq!(status, 200);
+    // A method a route does not take: 405, its methods in Allow, a JSON error.
+    let r = client()
+        .put(format!("{}/api/jobs", api.base))
+        .bearer_auth(admin)
+        .send()
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 405);
+    let allow = r.headers()["allow"].to_str().unwrap().to_string();
+    assert!(allow.contains("GET") && allow.contains("POST"), "{allow}");
+    let v: Value = r.json().unwrap();
+    assert!(v["error"].as_str().unwrap().contains("method"), "{v}");
+    // What the client sent is quoted back at most a kilobyte of it.
+    let name = "x".repeat(1 << 20);
+    let r = client()
+        .post(format!("{}/api/jobs", api.base))
+        .bearer_auth(admin)
+        .json(&serde_json::json!({"scene_name": name, "params": {}}))
+        .send()
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 422);
+    let v: Value = r.json().unwrap();
+    assert_eq!(v["path"], "scene_name", "{v}");
+    assert!(v.to_string().len() < 2048, "{} bytes", v.to_string().len());
 }
-both!(bad_ids_and_doubled_tokens_get_the_same_answers);
+both!(bad_ids_methods_names_and_tokens_get_the_same_answers);
 
 /// A finished job's image in ranges, as one box's file server gives them, and its length
 /// by HEAD: the same answers from either store (the farm streams it out of the store).
