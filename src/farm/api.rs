@@ -7,7 +7,6 @@
 //! those of them the farm has so far (see docs/farm.md, "Limits").
 
 use std::sync::Arc;
-use std::time::Duration;
 
 use axum::extract::{DefaultBodyLimit, Path, State};
 use axum::http::{HeaderMap, StatusCode, header};
@@ -31,9 +30,7 @@ use crate::server::needs::Limits;
 use crate::server::scenes::SceneCatalog;
 use crate::server::state::Snapshot;
 use crate::server::store::{JobRow, Status};
-use crate::server::submit::{
-    Admitted, admit, check_reference, over_storage, queue_full, read_body,
-};
+use crate::server::submit::{Admitted, admit, check_reference, over_storage, queue_full};
 use crate::server::views::{AuthErrors, ErrorBody, JobList, JobView, SceneList};
 use crate::server::web;
 
@@ -42,7 +39,7 @@ pub struct FarmApi {
     pub queue: Queue,
     pub catalog: Arc<SceneCatalog>,
     pub limits: Limits,
-    pub body_timeout: Duration,
+    pub(crate) bodies: crate::server::body::BodyReader,
     pub previews: Previews,
 }
 
@@ -144,14 +141,15 @@ async fn submit(
     body: axum::body::Body,
 ) -> Result<Response, ApiError> {
     let user = user(&api, &headers).await?;
-    let value = read_body(api.limits.body_bytes, api.body_timeout, &headers, body).await?;
+    let body = api.bodies.read(&headers, body).await?;
     let Admitted {
         row,
         spec,
         uploaded,
         work,
         size: admitted_size,
-    } = admit(&api.catalog, &api.limits, &user, value).await?;
+    } = admit(&api.catalog, &api.limits, &user, body.value).await?;
+    drop(body.share);
     if let Some(reference) = spec.reference_job {
         let seen = match api.queue.job(reference).await.map_err(store_error)? {
             Some(j) if visible(&user, &j.row) => Some((j.row.status, j.row.size)),

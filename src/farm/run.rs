@@ -14,6 +14,7 @@ use super::Queue;
 use super::api::{FarmApi, router};
 use super::worker::{WorkerConfig, run_worker};
 use crate::server::auth::{new_token, token_hash};
+use crate::server::body::BodyReader;
 use crate::server::needs::Limits;
 use crate::server::scenes::SceneCatalog;
 use crate::server::{ConnLimits, shutdown_signal};
@@ -67,7 +68,7 @@ pub fn serve(cfg: FarmServeConfig) -> anyhow::Result<()> {
             queue,
             catalog: Arc::new(catalog),
             limits: cfg.limits.clone(),
-            body_timeout: cfg.body_timeout,
+            bodies: BodyReader::new(cfg.limits.body_bytes, cfg.body_timeout),
             previews: Default::default(),
         });
         let listener = tokio::net::TcpListener::bind(&cfg.addr)

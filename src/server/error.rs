@@ -75,11 +75,12 @@ fn bounded(mut s: String) -> String {
 }
 
 impl IntoResponse for ApiError {
-    /// User errors keep their status, message and path. Internal errors are logged once,
+    /// User errors (and 503) keep their status, message and path. Internal errors are logged once,
     /// here, with a request id, and the client gets only the id: their detail (paths, SQL)
     /// is the operator's, not the client's.
     fn into_response(self) -> Response {
-        if self.status.is_server_error() {
+        // (503 says what the client should do: try again.)
+        if self.status.is_server_error() && self.status != StatusCode::SERVICE_UNAVAILABLE {
             let id = super::auth::new_token()[..12].to_string();
             tracing::error!(request_id = id, "{}", self.message);
             let body = ErrorBody {

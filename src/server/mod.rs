@@ -5,6 +5,7 @@
 
 pub(crate) mod api;
 pub(crate) mod auth;
+pub(crate) mod body;
 mod cache;
 pub(crate) mod error;
 pub(crate) mod events;
@@ -86,6 +87,8 @@ pub struct App {
     /// that parallel submissions of one user cannot all pass the same check. A tokio mutex:
     /// it is held across the store's insert (an await).
     submit: tokio::sync::Mutex<()>,
+    /// Request bodies within their size, time and memory bounds.
+    bodies: body::BodyReader,
 }
 
 pub type AppRef = Arc<App>;
@@ -216,6 +219,7 @@ impl App {
         let app = Arc::new(App {
             _lock: lock,
             submit: tokio::sync::Mutex::new(()),
+            bodies: body::BodyReader::new(config.limits.body_bytes, config.body_timeout),
             scheduler: Scheduler::new(config.max_running, config.limits.memory_bytes),
             cache: MapCache::new(config.cache_bytes),
             catalog: Arc::new(SceneCatalog::load(config.scenes.clone())),

@@ -33,6 +33,8 @@ use crate::spec::SpecForm;
         (status = 422, description = "A field is invalid or over a limit: `path` names it",
             body = ErrorBody),
         (status = 429, description = "You have the most queued jobs allowed", body = ErrorBody),
+        (status = 503, description = "The server is reading as many large bodies as it \
+            takes at once: try again", body = ErrorBody),
         AuthErrors,
     ))]
 pub async fn submit_job(
@@ -42,8 +44,9 @@ pub async fn submit_job(
     body: Body,
 ) -> Result<Response, ApiError> {
     let limits = &app.config.limits;
-    let value = read_body(limits.body_bytes, app.config.body_timeout, &headers, body).await?;
-    let admitted = admit(&app.catalog, limits, &user, value).await?;
+    let body = app.bodies.read(&headers, body).await?;
+    let admitted = admit(&app.catalog, limits, &user, body.value).await?;
+    drop(body.share);
     if let Some(reference) = admitted.spec.reference_job {
         let seen = match app.jobs.view(reference) {
             Some((row, _)) if visible(&user, &row) => Some((row.status, row.size)),
@@ -127,59 +130,6 @@ pub(crate) async fn admit(
     })
 }
 
-/// The request body as JSON, read within `limit` bytes and `timeout`; a body declared too
-/// large is refused before it is read.
-pub(crate) async fn read_body(
-    limit: usize,
-    timeout: std::time::Duration,
-    headers: &HeaderMap,
-    body: Body,
-) -> Result<Value, ApiError> {
-    let too_large = || {
-        ApiError::new(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            Some("body"),
-            format!("request body larger than the limit of {limit} bytes"),
-        )
-    };
-    let declared = headers
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse::<u64>().ok());
-    if declared.is_some_and(|n| n > limit as u64) {
-        return Err(too_large());
-    }
-    let read = tokio::time::timeout(timeout, axum::body::to_bytes(body, limit));
-    let body = read.await.map_err(|_| {
-        ApiError::new(
-            StatusCode::REQUEST_TIMEOUT,
-            Some("body"),
-            format!(
-                "the request body did not arrive within {} s",
-                timeout.as_secs_f64()
-            ),
-        )
-    })?;
-    let body = body.map_err(|e| {
-        if over_limit(&e) {
-            too_large()
-        } else {
-            ApiError::new(
-                StatusCode::BAD_REQUEST,
-                Some("body"),
-                format!("reading the body: {e}"),
-            )
-        }
-    })?;
-    let bad = |m: String| ApiError::new(StatusCode::BAD_REQUEST, Some("body"), m);
-    let value: Value =
-        serde_json::from_slice(&body).map_err(|e| bad(format!("malformed JSON: {e}")))?;
-    if !value.is_object() {
-        return Err(bad("expected a JSON object".into()));
-    }
-    Ok(value)
-}
-
 /// Check the user's queue and storage and commit the job, durable before it is
 /// acknowledged; then publish it and queue it. From the checks to the job table, one
 /// submission at a time (see `App::submit`).
@@ -236,18 +186,6 @@ pub(crate) fn over_storage(used: u64, quota: u64, adding: u64) -> ApiError {
             adding.div_ceil(1 << 20)
         ),
     )
-}
-
-/// Whether reading a body failed because it passed the limit.
-fn over_limit(e: &axum::Error) -> bool {
-    let mut source: Option<&(dyn std::error::Error + 'static)> = Some(e);
-    while let Some(err) = source {
-        if err.is::<http_body_util::LengthLimitError>() {
-            return true;
-        }
-        source = err.source();
-    }
-    false
 }
 
 /// A reference job must be one the user may see (`seen`: its status and size, None if the

@@ -185,3 +185,49 @@ fn heap_in_use(s: &Server) -> u64 {
         .expect("the server reports its heap in use");
     line.split_whitespace().nth(1).unwrap().parse().unwrap()
 }
+
+/// Many large uploads at once: the server reads and admits a bounded number of bodies at
+/// a time (four of the largest, `server::body`), so its peak does not grow with the
+/// number of clients sending one.
+#[test]
+fn many_large_uploads_at_once_share_a_bounded_memory_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let limit = 4 << 20;
+    let s = Server::start(dir.path(), &["--max-body", &limit.to_string()]);
+    // Refused by the work limit, after the scene is parsed and checked.
+    let params = json!({"integrator": "ppm", "width": 4096, "height": 4096, "spp": 4096,
+                        "gather_rays": 14000});
+    let body = json!({"scene": cornell_with_mesh(235), "params": params});
+    let body = serde_json::to_vec(&body).unwrap();
+    assert!(
+        body.len() > limit * 3 / 4 && body.len() < limit,
+        "{}",
+        body.len()
+    );
+    let (before, _) = rss(s.pid());
+    reset_peak(s.pid());
+    let statuses: Vec<u16> = std::thread::scope(|scope| {
+        let sends: Vec<_> = (0..128)
+            .map(|_| {
+                scope.spawn(|| {
+                    let r = client()
+                        .post(s.url("/api/jobs"))
+                        .bearer_auth(&s.admin)
+                        .header("content-type", "application/json")
+                        .body(body.clone())
+                        .send()
+                        .unwrap();
+                    r.status().as_u16()
+                })
+            })
+            .collect();
+        sends.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    let (_, peak) = rss(s.pid());
+    assert!(statuses.iter().all(|&c| c == 422), "{statuses:?}");
+    // About ten times a body for each of the four admitted at once, 160 MiB (measured:
+    // 201-217 MiB); read all at once, the 128 bodies' bytes alone are 512 MiB (measured
+    // without the budget: 634 MiB).
+    let grew = peak.saturating_sub(before);
+    assert!(grew < 400 << 20, "the peak grew by {} MiB", grew >> 20);
+}

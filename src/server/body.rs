@@ -1,0 +1,125 @@
+//! Request bodies within bounds: their size (413, before reading when the length is
+//! declared), their time (408), and the memory of their parsing. Parsed into JSON and
+//! admitted, a body takes about ten times its bytes (a 16 MB uploaded scene: 150-170 MB,
+//! docs/security.md), and thousands of connections may send one at once; so the bytes of
+//! bodies being read and admitted at once share a budget of four of the largest, and a
+//! request waits its turn (at most the body timeout, then 503).
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::body::Body;
+use axum::http::{HeaderMap, StatusCode, header};
+use serde_json::Value;
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
+
+use super::error::ApiError;
+
+/// Reads request bodies for every front end (one box and the farm).
+pub(crate) struct BodyReader {
+    limit: usize,
+    timeout: Duration,
+    /// KiB of bodies being read or admitted at once.
+    budget: Arc<Semaphore>,
+    budget_kib: u32,
+}
+
+/// A request's body, parsed, and its share of the budget: hold it until the request is
+/// admitted or refused.
+pub(crate) struct ReadBody {
+    pub value: Value,
+    pub share: OwnedSemaphorePermit,
+}
+
+/// Bodies of the largest size that may be in admission at once.
+const LARGEST_AT_ONCE: usize = 4;
+
+impl BodyReader {
+    pub fn new(limit: usize, timeout: Duration) -> BodyReader {
+        let budget_kib =
+            u32::try_from((LARGEST_AT_ONCE * limit).div_ceil(1024).max(1)).unwrap_or(u32::MAX);
+        BodyReader {
+            limit,
+            timeout,
+            budget: Arc::new(Semaphore::new(budget_kib as usize)),
+            budget_kib,
+        }
+    }
+
+    /// The request body as a JSON object, read within the size limit and the timeout once
+    /// the budget holds its declared length (else the limit).
+    pub async fn read(&self, headers: &HeaderMap, body: Body) -> Result<ReadBody, ApiError> {
+        let limit = self.limit;
+        let too_large = || {
+            ApiError::new(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                Some("body"),
+                format!("request body larger than the limit of {limit} bytes"),
+            )
+        };
+        let declared = headers
+            .get(header::CONTENT_LENGTH)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.parse::<u64>().ok());
+        if declared.is_some_and(|n| n > limit as u64) {
+            return Err(too_large());
+        }
+        let share = self.share(declared.map_or(limit, |n| n as usize)).await?;
+        let read = tokio::time::timeout(self.timeout, axum::body::to_bytes(body, limit));
+        let body = read.await.map_err(|_| {
+            ApiError::new(
+                StatusCode::REQUEST_TIMEOUT,
+                Some("body"),
+                format!(
+                    "the request body did not arrive within {} s",
+                    self.timeout.as_secs_f64()
+                ),
+            )
+        })?;
+        let body = body.map_err(|e| match over_limit(&e) {
+            true => too_large(),
+            false => ApiError::new(
+                StatusCode::BAD_REQUEST,
+                Some("body"),
+                format!("reading the body: {e}"),
+            ),
+        })?;
+        let bad = |m: String| ApiError::new(StatusCode::BAD_REQUEST, Some("body"), m);
+        let value: Value =
+            serde_json::from_slice(&body).map_err(|e| bad(format!("malformed JSON: {e}")))?;
+        if !value.is_object() {
+            return Err(bad("expected a JSON object".into()));
+        }
+        Ok(ReadBody { value, share })
+    }
+
+    /// A share of the budget for a body of `bytes`, waited for at most the body timeout.
+    async fn share(&self, bytes: usize) -> Result<OwnedSemaphorePermit, ApiError> {
+        let kib = u32::try_from(bytes.div_ceil(1024).max(1)).unwrap_or(u32::MAX);
+        let wait = self
+            .budget
+            .clone()
+            .acquire_many_owned(kib.min(self.budget_kib));
+        match tokio::time::timeout(self.timeout, wait).await {
+            Ok(Ok(share)) => Ok(share),
+            _ => Err(ApiError::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                Some("body"),
+                "the server is reading as many large requests as it takes at once: try \
+                 again shortly",
+            )),
+        }
+    }
+}
+
+/// Whether reading a body failed because it passed the limit.
+fn over_limit(e: &axum::Error) -> bool {
+    let mut source: Option<&(dyn std::error::Error + 'static)> = Some(e);
+    while let Some(err) = source {
+        if err.is::<http_body_util::LengthLimitError>() {
+            return true;
+        }
+        source = err.source();
+    }
+    false
+}
