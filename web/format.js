@@ -39,6 +39,7 @@ export function keyParams(job) {
   if (p.photons != null) out.push(`${fmtCount(p.photons)} photons`);
   if (p.k != null) out.push(`k ${p.k}`);
   if (p.iterations != null) out.push(`${p.iterations} passes`);
+  else if (p.time_limit != null) out.push(`passes for ${fmtSeconds(p.time_limit)}`);
   if (p.spp != null) out.push(`${p.spp} spp`);
   return out.join(", ");
 }

@@ -148,8 +148,7 @@ async fn submit(
         uploaded,
         work,
         size: admitted_size,
-    } = admit(&api.catalog, &api.limits, &user, body.value).await?;
-    drop(body.share);
+    } = admit(&api.catalog, &api.limits, &user, body).await?;
     if let Some(reference) = spec.reference_job {
         let seen = match api.queue.job(reference).await.map_err(store_error)? {
             Some(j) if visible(&user, &j.row) => Some((j.row.status, j.row.size)),

@@ -12,6 +12,9 @@ pub struct ApiError {
     pub status: StatusCode,
     pub message: String,
     pub path: Option<String>,
+    /// A 5xx whose message is the client's to read (`ApiError::busy`); every other 5xx's
+    /// detail is the operator's.
+    told: bool,
 }
 
 impl ApiError {
@@ -20,6 +23,7 @@ impl ApiError {
             status,
             message: message.into(),
             path: path.map(str::to_string),
+            told: false,
         }
     }
 
@@ -29,6 +33,7 @@ impl ApiError {
             status: StatusCode::UNPROCESSABLE_ENTITY,
             message: message.into(),
             path: Some(path.into()),
+            told: false,
         }
     }
 
@@ -48,6 +53,14 @@ impl ApiError {
         ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, None, message)
     }
 
+    /// 503 that says what to do (try again later), shown to the client as it is.
+    pub fn busy(path: &str, message: impl Into<String>) -> ApiError {
+        ApiError {
+            told: true,
+            ..ApiError::new(StatusCode::SERVICE_UNAVAILABLE, Some(path), message)
+        }
+    }
+
     /// 405 on a route that exists (axum adds the `Allow` header).
     pub fn method_not_allowed() -> ApiError {
         ApiError::new(
@@ -58,8 +71,9 @@ impl ApiError {
     }
 }
 
-/// The most of a message, or of a path, that goes back to a client: errors quote what the
-/// client sent (a scene's name, a key, a value), which may be megabytes.
+/// The most of a message, or of a path, that goes back to a client (then a note of how
+/// much was cut): errors quote what the client sent (a scene's name, a key, a value),
+/// which may be megabytes.
 const MAX_ECHO: usize = 1024;
 
 /// `s` cut to [`MAX_ECHO`] bytes (at a character boundary), saying how much was cut.
@@ -75,12 +89,11 @@ fn bounded(mut s: String) -> String {
 }
 
 impl IntoResponse for ApiError {
-    /// User errors (and 503) keep their status, message and path. Internal errors are logged once,
-    /// here, with a request id, and the client gets only the id: their detail (paths, SQL)
-    /// is the operator's, not the client's.
+    /// User errors (and `busy`) keep their status, message and path. Internal errors are
+    /// logged once, here, with a request id, and the client gets only the id: their detail
+    /// (paths, SQL) is the operator's, not the client's.
     fn into_response(self) -> Response {
-        // (503 says what the client should do: try again.)
-        if self.status.is_server_error() && self.status != StatusCode::SERVICE_UNAVAILABLE {
+        if self.status.is_server_error() && !self.told {
             let id = super::auth::new_token()[..12].to_string();
             tracing::error!(request_id = id, "{}", self.message);
             let body = ErrorBody {
@@ -154,6 +167,23 @@ mod tests {
         assert_eq!(status, 422);
         assert_eq!(v["path"], "params.k");
         assert_eq!(v["error"], "k must be at least 1");
+    }
+
+    #[test]
+    fn only_a_busy_503_shows_its_message() {
+        let store = ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            None,
+            "the store: connection to 10.0.0.5 refused",
+        );
+        let (status, v) = body(store);
+        assert_eq!(status, 503);
+        assert!(!v.to_string().contains("10.0.0.5"), "{v}");
+        let (status, v) = body(ApiError::busy("body", "try again shortly"));
+        assert_eq!(
+            (status, v["error"].as_str()),
+            (503, Some("try again shortly"))
+        );
     }
 
     #[test]

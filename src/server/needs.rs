@@ -129,9 +129,16 @@ impl JobNeeds {
         let work = needs.work;
         // Passes until a time limit is spent: the time bounds their number, and the work
         // counted is one pass's (`Needs::work`).
-        let what = match spec.stop().is_some_and(|s| s.until_time()) {
-            true => "one pass of this job",
-            false => "this job",
+        let (what, fewer) = if spec.stop().is_some_and(|s| s.until_time()) {
+            (
+                "one pass of this job",
+                "samples, gather rays, pixels or photons",
+            )
+        } else {
+            (
+                "this job",
+                "samples, gather rays, pixels, photons or passes",
+            )
         };
         if work > limits.max_work {
             return Err(ApiError::invalid(
@@ -139,7 +146,7 @@ impl JobNeeds {
                 format!(
                     "{what} is an estimated {:.3e} ray samples of work (pixels x spp x (1 + \
                      gather_rays), photons, passes), more than the server's limit of {:.3e} \
-                     (fewer samples, gather rays, pixels, photons or passes would fit)",
+                     (fewer {fewer} would fit)",
                     work, limits.max_work
                 ),
             ));

@@ -35,7 +35,7 @@ impl Snapshot {
             status: row.status,
             progress: if row.status == Status::Done { 1.0 } else { 0.0 },
             phase: None,
-            eta_seconds: None,
+            eta_seconds: (row.status == Status::Done).then_some(0.0),
             previews: (row.status == Status::Done) as u64,
             error: row.error.clone(),
         }

@@ -8,11 +8,12 @@ use axum::body::Body;
 use axum::extract::State;
 use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use serde_json::{Value, json};
+use serde_json::json;
 
 use super::AppRef;
 use super::api::{blocking, visible};
 use super::auth::User;
+use super::body::ReadBody;
 use super::error::ApiError;
 use super::jobs::{JobRequest, JobSpec, from_json};
 use super::needs::{JobNeeds, Limits};
@@ -45,8 +46,7 @@ pub async fn submit_job(
 ) -> Result<Response, ApiError> {
     let limits = &app.config.limits;
     let body = app.bodies.read(&headers, body).await?;
-    let admitted = admit(&app.catalog, limits, &user, body.value).await?;
-    drop(body.share);
+    let admitted = admit(&app.catalog, limits, &user, body).await?;
     if let Some(reference) = admitted.spec.reference_job {
         let seen = match app.jobs.view(reference) {
             Some((row, _)) if visible(&user, &row) => Some((row.status, row.size)),
@@ -84,8 +84,9 @@ pub(crate) async fn admit(
     catalog: &std::sync::Arc<SceneCatalog>,
     limits: &Limits,
     user: &User,
-    value: Value,
+    body: ReadBody,
 ) -> Result<Admitted, ApiError> {
+    let ReadBody { value, share } = body;
     let req: JobRequest = from_json(value, "")?;
     let form: SpecForm = from_json(req.params.unwrap_or(json!({})), "params")?;
     let spec = JobSpec::from_form(&form)?;
@@ -93,6 +94,9 @@ pub(crate) async fn admit(
     let (catalog, render, limits2) = (catalog.clone(), spec.render.clone(), limits.clone());
     let (scene_name, scene_value) = (req.scene_name.clone(), req.scene);
     let (scene, needs) = blocking(move || {
+        // The body's share of the budget goes back once its scene is parsed, even if the
+        // client has gone.
+        let _share = share;
         let scene = resolve_request(&catalog, scene_value, scene_name.as_deref())?;
         let needs = JobNeeds::estimate(&scene.desc, &render);
         needs.check(&render, &limits2)?;

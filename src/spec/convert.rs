@@ -5,8 +5,8 @@
 use super::form::{EffectsForm, IntegratorName, SpecForm};
 use super::rules::{Scope, check_numbers, scope_of, scopes};
 use super::{
-    EffectSwitches, Integrator, Passes, PhotonMapping, PhotonStore, Progressive, Raytrace,
-    RenderSpec, SPEC_VERSION, SpecError, Stop,
+    EffectSwitches, Integrator, MAX_ITERATIONS, Passes, PhotonMapping, PhotonStore, Progressive,
+    Raytrace, RenderSpec, SPEC_VERSION, SpecError, Stop,
 };
 
 impl SpecForm {
@@ -109,6 +109,9 @@ impl SpecForm {
     /// A progressive render's stop: a time limit alone runs passes until it is spent.
     fn fill_stop(&self, stop: &mut Stop) {
         stop.iterations = match (self.iterations, self.time_limit) {
+            // The engine's most passes with a time limit: until the time is spent (as
+            // jobs stored before 2026-12-04 recorded it).
+            (Some(MAX_ITERATIONS), Some(_)) => None,
             (Some(n), _) => Some(n),
             (None, Some(_)) => None,
             (None, None) => stop.iterations,

@@ -158,7 +158,7 @@ impl Stop {
     /// Whether passes run until the time limit is spent: a time limit given without a pass
     /// count.
     pub fn until_time(&self) -> bool {
-        self.iterations.is_none()
+        self.iterations.is_none() && self.time_limit.is_some()
     }
 
     /// The most passes the render may run: its pass count, else the engine's most.

@@ -174,7 +174,12 @@ async fn await_heartbeat(pool: &sqlx::PgPool, worker: &str) {
     await_lease(pool, worker).await;
     let first = lease_until().await;
     let t0 = Instant::now();
-    while lease_until().await == first {
+    loop {
+        match lease_until().await {
+            Some(t) if Some(t) != first => return,
+            None => panic!("{worker}'s task ended before a heartbeat (too short a task?)"),
+            Some(_) => {}
+        }
         assert!(
             t0.elapsed() < Duration::from_secs(60),
             "{worker} never extended its lease {first:?}"
