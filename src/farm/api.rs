@@ -141,7 +141,7 @@ async fn submit(
     body: axum::body::Body,
 ) -> Result<Response, ApiError> {
     let user = user(&api, &headers).await?;
-    let body = api.bodies.read(&headers, body).await?;
+    let body = api.bodies.read(user.id, &headers, body).await?;
     let Admitted {
         row,
         spec,

@@ -3,10 +3,13 @@
 //! admitted, a body takes about ten times its bytes (a 16 MB uploaded scene: 150-170 MB,
 //! docs/security.md), and thousands of connections may send one at once; so the bytes of
 //! bodies being read and admitted at once share a budget of four of the largest, and a
-//! request waits its turn (at most the body timeout, then 503). Small bodies (64 KiB,
-//! declared) go without: a job on a built-in scene never waits behind uploads.
+//! request waits its turn (at most the body timeout, then 503). A user has one large body
+//! in admission at a time, so that one user's slow uploads cannot hold the whole budget.
+//! Small bodies (64 KiB, declared) go without: a job on a built-in scene never waits
+//! behind uploads.
 
-use std::sync::Arc;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use axum::body::Body;
@@ -23,13 +26,21 @@ pub(crate) struct BodyReader {
     /// KiB of bodies being read or admitted at once.
     budget: Arc<Semaphore>,
     budget_kib: u32,
+    /// Each user's turn for a large body (one permit a user).
+    turns: Mutex<HashMap<i64, Arc<Semaphore>>>,
 }
 
 /// A request's body, parsed, and its share of the budget (none for a small body): hold it
 /// until the request is admitted or refused.
 pub(crate) struct ReadBody {
     pub value: Value,
-    pub share: Option<OwnedSemaphorePermit>,
+    pub share: Option<Share>,
+}
+
+/// A large body's turn among its user's and its bytes of the budget.
+pub(crate) struct Share {
+    _turn: OwnedSemaphorePermit,
+    _bytes: OwnedSemaphorePermit,
 }
 
 /// Bodies of the largest size that may be in admission at once.
@@ -48,12 +59,19 @@ impl BodyReader {
             timeout,
             budget: Arc::new(Semaphore::new(budget_kib as usize)),
             budget_kib,
+            turns: Mutex::default(),
         }
     }
 
-    /// The request body as a JSON object, read within the size limit and the timeout once
-    /// the budget holds its declared length (else the limit), unless it is small.
-    pub async fn read(&self, headers: &HeaderMap, body: Body) -> Result<ReadBody, ApiError> {
+    /// User `user`'s request body as a JSON object, read within the size limit and the
+    /// timeout once the budget holds its declared length (else the limit), unless it is
+    /// small.
+    pub async fn read(
+        &self,
+        user: i64,
+        headers: &HeaderMap,
+        body: Body,
+    ) -> Result<ReadBody, ApiError> {
         let limit = self.limit;
         let too_large = || {
             ApiError::new(
@@ -71,7 +89,10 @@ impl BodyReader {
         }
         let share = match declared {
             Some(n) if n <= SMALL => None,
-            _ => Some(self.share(declared.map_or(limit, |n| n as usize)).await?),
+            _ => Some(
+                self.share(user, declared.map_or(limit, |n| n as usize))
+                    .await?,
+            ),
         };
         let read = tokio::time::timeout(self.timeout, axum::body::to_bytes(body, limit));
         let body = read.await.map_err(|_| {
@@ -101,19 +122,35 @@ impl BodyReader {
         Ok(ReadBody { value, share })
     }
 
-    /// A share of the budget for a body of `bytes`, waited for at most the body timeout.
-    async fn share(&self, bytes: usize) -> Result<OwnedSemaphorePermit, ApiError> {
+    /// User `user`'s turns (a semaphore of one permit, made at their first large body).
+    fn turn_of(&self, user: i64) -> Arc<Semaphore> {
+        let mut turns = self.turns.lock().unwrap_or_else(|e| e.into_inner());
+        let turn = turns
+            .entry(user)
+            .or_insert_with(|| Arc::new(Semaphore::new(1)));
+        turn.clone()
+    }
+
+    /// User `user`'s turn and a share of the budget for a body of `bytes`, waited for at
+    /// most the body timeout.
+    async fn share(&self, user: i64, bytes: usize) -> Result<Share, ApiError> {
         let kib = u32::try_from(bytes.div_ceil(1024).max(1)).unwrap_or(u32::MAX);
-        let wait = self
-            .budget
-            .clone()
-            .acquire_many_owned(kib.min(self.budget_kib));
+        let turn = self.turn_of(user);
+        let wait = async {
+            let turn = turn.acquire_owned().await?;
+            let bytes = self.budget.clone();
+            let bytes = bytes.acquire_many_owned(kib.min(self.budget_kib)).await?;
+            Ok::<_, tokio::sync::AcquireError>(Share {
+                _turn: turn,
+                _bytes: bytes,
+            })
+        };
         match tokio::time::timeout(self.timeout, wait).await {
             Ok(Ok(share)) => Ok(share),
             _ => Err(ApiError::busy(
                 "body",
-                "the server is reading as many large requests as it takes at once: try \
-                 again shortly",
+                "the server is reading as many large requests as it takes at once (one of \
+                 each user's at a time): try again shortly",
             )),
         }
     }

@@ -45,7 +45,7 @@ pub async fn submit_job(
     body: Body,
 ) -> Result<Response, ApiError> {
     let limits = &app.config.limits;
-    let body = app.bodies.read(&headers, body).await?;
+    let body = app.bodies.read(user.id, &headers, body).await?;
     let admitted = admit(&app.catalog, limits, &user, body).await?;
     if let Some(reference) = admitted.spec.reference_job {
         let seen = match app.jobs.view(reference) {

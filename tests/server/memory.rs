@@ -231,3 +231,41 @@ fn many_large_uploads_at_once_share_a_bounded_memory_budget() {
     let grew = peak.saturating_sub(before);
     assert!(grew < 400 << 20, "the peak grew by {} MiB", grew >> 20);
 }
+
+/// One user's slow uploads hold at most one share of the body budget: another user's
+/// upload is read and admitted at once, not once the first user's bodies time out.
+#[test]
+fn one_user_s_slow_uploads_do_not_hold_up_another_user_s() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let limit = 4 << 20;
+    let flags = ["--max-body", &limit.to_string(), "--body-timeout", "60"];
+    let s = Server::start(dir.path(), &flags);
+    let bob = s.add_user("bob");
+    // Four uploads by the admin that declare nearly the limit and send one byte: together
+    // they would hold nearly the whole budget for the body timeout.
+    let slow: Vec<std::net::TcpStream> = (0..4)
+        .map(|_| {
+            let mut c = std::net::TcpStream::connect(s.addr()).unwrap();
+            write!(
+                c,
+                "POST /api/jobs HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {}\r\n\
+                 Content-Type: application/json\r\nContent-Length: {}\r\n\r\n{{",
+                s.admin,
+                limit - 1000
+            )
+            .unwrap();
+            c
+        })
+        .collect();
+    // Bob's upload of about 1 MB: parsed and checked (refused by the work limit) at once.
+    let params = json!({"integrator": "ppm", "width": 4096, "height": 4096, "spp": 4096,
+                        "gather_rays": 14000});
+    let body = json!({"scene": cornell_with_mesh(120), "params": params});
+    let t0 = std::time::Instant::now();
+    let (status, v) = post(&s, &bob, &body);
+    let waited = t0.elapsed();
+    assert_eq!((status, v["path"].as_str()), (422, Some("params")), "{v}");
+    assert!(waited.as_secs_f64() < 20.0, "bob waited {waited:?}");
+    drop(slow);
+}
