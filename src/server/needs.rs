@@ -126,7 +126,6 @@ impl JobNeeds {
     /// The estimated work and memory against the server's limits.
     fn check_estimates(&self, spec: &RenderSpec, limits: &Limits) -> Result<(), ApiError> {
         let needs = &self.render;
-        let work = needs.work;
         // Passes until a time limit is spent: the time bounds their number, and the work
         // counted is one pass's (`Needs::work`).
         let (what, fewer) = if spec.stop().is_some_and(|s| s.until_time()) {
@@ -140,14 +139,14 @@ impl JobNeeds {
                 "samples, gather rays, pixels, photons or passes",
             )
         };
-        if work > limits.max_work {
+        if needs.work > limits.max_work {
             return Err(ApiError::invalid(
                 "params",
                 format!(
                     "{what} is an estimated {:.3e} ray samples of work (pixels x spp x (1 + \
                      gather_rays), photons, passes), more than the server's limit of {:.3e} \
                      (fewer {fewer} would fit)",
-                    work, limits.max_work
+                    needs.work, limits.max_work
                 ),
             ));
         }

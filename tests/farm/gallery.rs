@@ -170,15 +170,15 @@ fn bad_ids_methods_names_and_tokens_get_the_same_answers(kind: Kind) {
     assert!(v["error"].as_str().unwrap().contains("method"), "{v}");
     // What the client sent is quoted back at most a kilobyte of it.
     let name = "x".repeat(1 << 20);
-    let r = client()
-        .post(format!("{}/api/jobs", api.base))
-        .bearer_auth(admin)
-        .json(&serde_json::json!({"scene_name": name, "params": {}}))
-        .send()
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 422);
-    let v: Value = r.json().unwrap();
-    assert_eq!(v["path"], "scene_name", "{v}");
+    let (status, v) = api.post_job(
+        admin,
+        &serde_json::json!({"scene_name": name, "params": {}}),
+    );
+    assert_eq!(
+        (status, v["path"].as_str()),
+        (422, Some("scene_name")),
+        "{v}"
+    );
     assert!(v.to_string().len() < 2048, "{} bytes", v.to_string().len());
 }
 both!(bad_ids_methods_names_and_tokens_get_the_same_answers);

@@ -13,8 +13,8 @@ pub struct Needs {
     /// Work in ray-sized units: every camera sample and final-gather ray, every emitted
     /// photon, and (for `photon`) each k-NN neighbour of the irradiance precompute, times
     /// the passes of a progressive render (one pass of a render that runs until its time
-    /// limit: the time, not the work, bounds it). An upper guide, not a prediction of seconds: it
-    /// bounds what one render may take from a machine, whatever its parameters.
+    /// limit: the time, not the work, bounds it). An upper guide, not a prediction of
+    /// seconds: it bounds what one render may take from a machine, whatever its parameters.
     pub work: f64,
     /// An upper estimate of the result files: the EXR (f32 RGBA), the PNG, and a
     /// progressive render's saved state (the exact sum image, 48 bytes a pixel).
