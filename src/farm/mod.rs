@@ -12,6 +12,7 @@ mod download;
 mod events;
 mod jobs;
 pub mod outcome;
+mod prepared;
 pub mod preview;
 pub mod probe;
 pub mod queue;

@@ -15,16 +15,23 @@ use super::{FarmError, Queue};
 pub async fn health(queue: &Queue) -> Response {
     match sqlx::query("SELECT 1").execute(queue.pool()).await {
         Ok(_) => "ok\n".into_response(),
-        Err(e) => (StatusCode::SERVICE_UNAVAILABLE, format!("store: {e}\n")).into_response(),
+        Err(e) => store_unavailable(&e),
     }
 }
 
-/// This process's queue counters, the farm's counters and the queue's depth by user
-/// (Prometheus text).
+/// 503 for an unauthenticated probe whose store failed: the store's error (its address,
+/// its user) goes to the log, not to whoever asked.
+fn store_unavailable(e: &dyn std::fmt::Display) -> Response {
+    tracing::warn!("probe: the store: {e}");
+    (StatusCode::SERVICE_UNAVAILABLE, "store unavailable\n").into_response()
+}
+
+/// This process's queue counters, the farm's counters and the queue's depth (Prometheus
+/// text; unauthenticated, like one box's, so nothing in it names or numbers a user).
 pub async fn metrics(queue: &Queue) -> Response {
     match metrics_text(queue).await {
         Ok(out) => ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], out).into_response(),
-        Err(e) => (StatusCode::SERVICE_UNAVAILABLE, format!("store: {e}\n")).into_response(),
+        Err(e) => store_unavailable(&e),
     }
 }
 
@@ -67,11 +74,19 @@ async fn metrics_text(queue: &Queue) -> Result<String, FarmError> {
         fenced,
     );
     let depth = queue.depth_by_user().await?;
-    out += "# HELP photonbox_farm_queued_tasks Queued tasks by user id.\n";
-    out += "# TYPE photonbox_farm_queued_tasks gauge\n";
-    for (user, n) in depth {
-        out += &format!("photonbox_farm_queued_tasks{{user=\"{user}\"}} {n}\n");
-    }
+    let mut gauge = |name: &str, help: &str, v: i64| {
+        out += &format!("# HELP {name} {help}\n# TYPE {name} gauge\n{name} {v}\n");
+    };
+    gauge(
+        "photonbox_farm_queued_tasks",
+        "Queued tasks.",
+        depth.iter().map(|(_, n)| n).sum(),
+    );
+    gauge(
+        "photonbox_farm_queued_users",
+        "Users with queued tasks.",
+        depth.len() as i64,
+    );
     Ok(out)
 }
 

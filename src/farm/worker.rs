@@ -15,13 +15,13 @@ use anyhow::Context;
 use tokio::sync::watch;
 
 use super::outcome::{job_stats, merge};
+use super::prepared::{Prepared, Unprepared, prepare};
 use super::queue::CANCEL_CHANNEL;
-use super::records::{JobImages, JobSource};
-use super::task::{Kept, UnitResult, render_unit};
+use super::records::JobImages;
+use super::task::{UnitResult, render_unit};
 use super::{Completion, FarmError, Lease, Queue};
-use crate::render::{Control, Image, RenderError, Scene, output};
-use crate::server::jobs::JobSpec;
-use crate::server::scenes::{ResolvedScene, SceneCatalog, resolve_uploaded};
+use crate::render::{Image, RenderError, output};
+use crate::server::scenes::SceneCatalog;
 
 /// How long a worker sleeps between claims when no NOTIFY wakes it (a notification lost
 /// while its listener reconnected, or a lease that expired and nobody announced).
@@ -44,19 +44,6 @@ pub struct WorkerConfig {
     pub scenes: PathBuf,
     /// A claim's lease; heartbeats renew it three times per lease.
     pub lease: Duration,
-}
-
-/// A job's scene, built, and its spec: kept while the worker renders that job's tasks.
-struct Prepared {
-    job_id: i64,
-    scene: Arc<Scene>,
-    resolved: ResolvedScene,
-    spec: JobSpec,
-    size: (u32, u32),
-    /// What its tasks found that the next ones reuse (initial radii, photon maps).
-    kept: Kept,
-    /// The reference job's image, when the job has one.
-    reference: Option<Image>,
 }
 
 /// Run a worker until `shutdown` turns true; `joined` is given its queue once it has
@@ -161,8 +148,18 @@ impl Task<'_> {
             Some(p) => p,
             None => match self.prepare(lease.job_id).await {
                 Ok(p) => Arc::new(p),
-                Err(e) => {
+                Err(Unprepared::Job(e)) => {
                     self.report_failure(&lease, &e).await;
+                    return None;
+                }
+                Err(Unprepared::StoreAway(e)) => {
+                    // Not the task's fault: give it back uncounted (if the store is still
+                    // away, the lease expires instead), and let the store come back.
+                    tracing::warn!(job = lease.job_id, "reading the job: {e}: giving it back");
+                    if let Err(e) = self.queue.release(&lease).await {
+                        tracing::warn!("giving the task back: {e}");
+                    }
+                    tokio::time::sleep(RETRY).await;
                     return None;
                 }
             },
@@ -232,17 +229,16 @@ impl Task<'_> {
     }
 
     /// Read the job's spec and scene and build the scene (its BVH) on the worker's pool.
-    async fn prepare(&self, job_id: i64) -> Result<Prepared, String> {
-        let source = self
-            .queue
-            .job_source(job_id)
-            .await
-            .map_err(|e| format!("reading the job: {e}"))?;
+    async fn prepare(&self, job_id: i64) -> Result<Prepared, Unprepared> {
+        let source = self.queue.job_source(job_id).await;
+        let source = source.map_err(|e| Unprepared::of(e, "reading the job"))?;
         let (catalog, pool) = (self.catalog.clone(), self.pool.clone());
         let mut prepared =
             tokio::task::spawn_blocking(move || prepare(job_id, &source, &catalog, &pool))
                 .await
-                .map_err(|e| e.to_string())??;
+                .map_err(|e| e.to_string())
+                .and_then(|p| p)
+                .map_err(Unprepared::Job)?;
         if let Some(rid) = prepared.spec.reference_job {
             prepared.reference = Some(self.reference(rid).await?);
         }
@@ -251,14 +247,14 @@ impl Task<'_> {
 
     /// Reference job `rid`'s image, from the store; it may have been deleted since the
     /// job was submitted.
-    async fn reference(&self, rid: i64) -> Result<Image, String> {
+    async fn reference(&self, rid: i64) -> Result<Image, Unprepared> {
         let gone = |e: String| {
             format!("reference job {rid}: its image cannot be read (was the job deleted?): {e}")
         };
         let bytes = self.queue.job_image(rid, true).await;
-        let bytes = bytes.map_err(|e| gone(e.to_string()))?;
-        let bytes = bytes.ok_or_else(|| gone("no image".into()))?;
-        output::decode_exr(&bytes).map_err(|e| gone(e.to_string()))
+        let bytes = bytes.map_err(|e| Unprepared::of(e, &format!("reference job {rid}")))?;
+        let bytes = bytes.ok_or_else(|| Unprepared::Job(gone("no image".into())))?;
+        output::decode_exr(&bytes).map_err(|e| Unprepared::Job(gone(e.to_string())))
     }
 
     async fn report_failure(&self, lease: &Lease, reason: &str) {
@@ -334,36 +330,4 @@ impl Task<'_> {
             .map_err(|e| e.to_string())?;
         Ok(())
     }
-}
-
-/// A job's spec and scene, the scene built.
-fn prepare(
-    job_id: i64,
-    source: &JobSource,
-    catalog: &SceneCatalog,
-    pool: &rayon::ThreadPool,
-) -> Result<Prepared, String> {
-    let spec = JobSpec::from_stored(&source.params_json)?;
-    let resolved = match (&source.scene_json, &source.scene_name) {
-        (Some(text), _) => {
-            let value = serde_json::from_str(text).map_err(|e| format!("the job's scene: {e}"))?;
-            resolve_uploaded(value).map_err(|e| e.to_string())?
-        }
-        (None, Some(name)) => catalog.resolve(name).map_err(|e| e.to_string())?,
-        (None, None) => return Err("the job has no scene".into()),
-    };
-    let scene = pool
-        .install(|| Scene::build_with(&resolved.desc, &Control::none()))
-        .map_err(|e| e.to_string())?;
-    let camera = &resolved.desc.camera;
-    let size = spec.render.resolution((camera.width, camera.height));
-    Ok(Prepared {
-        job_id,
-        scene: Arc::new(scene),
-        resolved,
-        spec,
-        size,
-        kept: Kept::default(),
-        reference: None,
-    })
 }

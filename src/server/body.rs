@@ -43,8 +43,14 @@ pub(crate) struct Share {
     _bytes: OwnedSemaphorePermit,
 }
 
+/// How many users' turns the reader keeps before it forgets the idle ones.
+const PRUNE_TURNS_AT: usize = 64;
+
 /// Bodies of the largest size that may be in admission at once.
 const LARGEST_AT_ONCE: usize = 4;
+
+/// What a request refused for want of budget is told to wait before it tries again.
+const RETRY_AFTER_SECS: u32 = 5;
 
 /// Bodies declared this small go without a share: large ones waiting for theirs do not
 /// hold up a job on a built-in scene.
@@ -125,6 +131,11 @@ impl BodyReader {
     /// User `user`'s turns (a semaphore of one permit, made at their first large body).
     fn turn_of(&self, user: i64) -> Arc<Semaphore> {
         let mut turns = self.turns.lock().unwrap_or_else(|e| e.into_inner());
+        if turns.len() >= PRUNE_TURNS_AT && !turns.contains_key(&user) {
+            // A turn nobody holds or waits for is only this map's (its permit holders and
+            // waiters hold clones): forget it, so the map holds the users of the moment.
+            turns.retain(|_, t| Arc::strong_count(t) > 1);
+        }
         let turn = turns
             .entry(user)
             .or_insert_with(|| Arc::new(Semaphore::new(1)));
@@ -149,6 +160,7 @@ impl BodyReader {
             Ok(Ok(share)) => Ok(share),
             _ => Err(ApiError::busy(
                 "body",
+                RETRY_AFTER_SECS,
                 "the server is reading as many large requests as it takes at once (one of \
                  each user's at a time): try again shortly",
             )),
@@ -166,4 +178,24 @@ fn over_limit(e: &axum::Error) -> bool {
         source = err.source();
     }
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The turns of users who have no body in admission are forgotten once there are
+    /// many; a turn someone holds is kept (its holder would otherwise share it with a
+    /// newcomer's fresh one).
+    #[test]
+    fn idle_users_turns_are_forgotten_and_held_ones_kept() {
+        let reader = BodyReader::new(1 << 20, Duration::from_secs(1));
+        let held = reader.turn_of(-1);
+        for user in 0..1000 {
+            reader.turn_of(user);
+        }
+        let turns = reader.turns.lock().unwrap();
+        assert!(turns.len() <= PRUNE_TURNS_AT, "{} turns kept", turns.len());
+        assert!(Arc::ptr_eq(&turns[&-1], &held));
+    }
 }

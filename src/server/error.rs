@@ -2,7 +2,7 @@
 //! offending field (a JSON path into the request, a header, or a limit).
 
 use axum::Json;
-use axum::http::StatusCode;
+use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
 use super::views::ErrorBody;
@@ -15,6 +15,8 @@ pub struct ApiError {
     /// A 5xx whose message is the client's to read (`ApiError::busy`); every other 5xx's
     /// detail is the operator's.
     told: bool,
+    /// Seconds after which a retry may succeed (the `Retry-After` header of a busy 503).
+    retry_after: Option<u32>,
 }
 
 impl ApiError {
@@ -24,6 +26,7 @@ impl ApiError {
             message: message.into(),
             path: path.map(str::to_string),
             told: false,
+            retry_after: None,
         }
     }
 
@@ -34,6 +37,7 @@ impl ApiError {
             message: message.into(),
             path: Some(path.into()),
             told: false,
+            retry_after: None,
         }
     }
 
@@ -54,9 +58,10 @@ impl ApiError {
     }
 
     /// 503 that says what to do (try again later), shown to the client as it is.
-    pub fn busy(path: &str, message: impl Into<String>) -> ApiError {
+    pub fn busy(path: &str, retry_after: u32, message: impl Into<String>) -> ApiError {
         ApiError {
             told: true,
+            retry_after: Some(retry_after),
             ..ApiError::new(StatusCode::SERVICE_UNAVAILABLE, Some(path), message)
         }
     }
@@ -108,7 +113,13 @@ impl IntoResponse for ApiError {
             path: self.path.map(bounded),
             request_id: None,
         };
-        (self.status, Json(body)).into_response()
+        let mut response = (self.status, Json(body)).into_response();
+        if let Some(secs) = self.retry_after {
+            response
+                .headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(secs));
+        }
+        response
     }
 }
 
@@ -179,7 +190,9 @@ mod tests {
         let (status, v) = body(store);
         assert_eq!(status, 503);
         assert!(!v.to_string().contains("10.0.0.5"), "{v}");
-        let (status, v) = body(ApiError::busy("body", "try again shortly"));
+        let busy = || ApiError::busy("body", 5, "try again shortly");
+        assert_eq!(busy().into_response().headers()[header::RETRY_AFTER], "5");
+        let (status, v) = body(busy());
         assert_eq!(
             (status, v["error"].as_str()),
             (503, Some("try again shortly"))

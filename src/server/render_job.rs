@@ -188,10 +188,9 @@ impl<'a> Publisher<'a> {
         if p.phase == crate::render::Phase::Passes {
             self.passes.store(p.done, Ordering::Relaxed);
         }
-        let f = self
-            .model
-            .fraction(p, self.passes.load(Ordering::Relaxed))
-            .clamp(0.0, 0.999);
+        let elapsed = self.started.elapsed().as_secs_f64();
+        let passes = self.passes.load(Ordering::Relaxed);
+        let f = self.model.fraction(p, passes, elapsed).clamp(0.0, 0.999);
         let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
         let phase = Some(p.phase.name());
         if f < last.0 + 0.005 && phase == last.1 {
@@ -199,7 +198,6 @@ impl<'a> Publisher<'a> {
         }
         let f = f.max(last.0);
         *last = (f, phase);
-        let elapsed = self.started.elapsed().as_secs_f64();
         let eta = (f > 0.02).then(|| elapsed * (1.0 - f) / f);
         self.live.send_modify(|s| {
             if s.status == Status::Running {

@@ -351,6 +351,14 @@ fn a_private_job_is_seen_by_its_owner_and_the_admin_only(kind: Kind) {
     assert_eq!(api.get(&carol, &format!("/api/jobs/{id}")).0, 404);
     assert_eq!(api.delete_job(&carol, id), 404);
     assert_eq!(api.get("not-a-token", "/api/jobs").0, 401);
+    if let Kind::Postgres = kind {
+        // The unauthenticated /metrics count bob's queued task (no worker takes it), and
+        // do not say whose it is.
+        assert_eq!(api.metric("photonbox_farm_queued_tasks"), 1);
+        assert_eq!(api.metric("photonbox_farm_queued_users"), 1);
+        let text = String::from_utf8(api.get("", "/metrics").1).unwrap();
+        assert!(!text.contains("user=") && !text.contains("bob"), "{text}");
+    }
 }
 both!(a_private_job_is_seen_by_its_owner_and_the_admin_only);
 
@@ -381,4 +389,8 @@ fn a_worker_started_before_its_store_waits_for_it() {
         metrics.contains("\nphotonbox_farm_tasks_claimed_total 16\n"),
         "{metrics}"
     );
+    // The store gone, its probes say so, and keep the store's error (its address, its
+    // user) for the log.
+    own.stop();
+    assert_eq!(probe("/healthz"), (503, "store unavailable\n".to_string()));
 }

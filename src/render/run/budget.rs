@@ -121,13 +121,18 @@ fn work(spec: &RenderSpec, pixels: u64) -> f64 {
 
 /// One monotone-ready fraction of a whole render from the engine's per-phase progress: the
 /// phases weighted by their expected cost (photon tracing, tree building, the irradiance
-/// precompute, the camera pass), and a progressive render's passes in sequence.
+/// precompute, the camera pass), and a progressive render's passes in sequence. A render
+/// with a time limit is as far along as the larger of its passes and its time, since it
+/// stops at whichever runs out first (and one that runs until its time is spent has
+/// nothing else to count).
 pub struct ProgressModel {
     /// Relative cost of each phase of one pass: tracing (with scene building), building,
     /// precompute, camera pass.
     weights: [f64; 4],
     /// Passes the render may run.
     passes: f64,
+    /// Seconds the render may run, if it stops by time.
+    time_limit: Option<f64>,
 }
 
 impl ProgressModel {
@@ -155,12 +160,25 @@ impl ProgressModel {
             }
             Integrator::Vcm(m) => ([0.0, 0.0, 0.0, 1.0], m.passes.stop.pass_limit() as f64),
         };
-        ProgressModel { weights, passes }
+        let time_limit = spec.stop().and_then(|s| s.time_limit);
+        ProgressModel {
+            weights,
+            passes,
+            time_limit,
+        }
     }
 
-    /// The fraction of the render done when a phase reports `p`, given `passes_done`
-    /// (the last `Phase::Passes` report's count).
-    pub fn fraction(&self, p: Progress, passes_done: u64) -> f64 {
+    /// The fraction of the render done when a phase reports `p`, `elapsed` seconds into
+    /// it, given `passes_done` (the last `Phase::Passes` report's count).
+    pub fn fraction(&self, p: Progress, passes_done: u64, elapsed: f64) -> f64 {
+        let by_time = self
+            .time_limit
+            .filter(|&t| t > 0.0)
+            .map_or(0.0, |t| elapsed / t);
+        self.fraction_of_passes(p, passes_done).max(by_time)
+    }
+
+    fn fraction_of_passes(&self, p: Progress, passes_done: u64) -> f64 {
         let within = if p.total > 0 {
             p.done as f64 / p.total as f64
         } else {
@@ -177,5 +195,58 @@ impl ProgressModel {
         let before: f64 = self.weights[..i].iter().sum();
         let in_pass = (before + self.weights[i] * within) / total;
         (passes_done as f64 + in_pass) / self.passes
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spec::Progressive;
+
+    fn ppm(stop: Stop) -> ProgressModel {
+        let spec = RenderSpec::ppm(Progressive {
+            stop,
+            ..Progressive::DEFAULT
+        });
+        ProgressModel::new(&spec, 64 * 64)
+    }
+
+    fn passes(done: u64, total: u64) -> Progress {
+        Progress {
+            phase: Phase::Passes,
+            done,
+            total,
+        }
+    }
+
+    /// A render that runs until its time limit is as far along as its time, not as its
+    /// passes over the engine's cap of a million.
+    #[test]
+    fn a_render_until_its_time_limit_counts_its_time() {
+        let until = Stop {
+            iterations: None,
+            time_limit: Some(10.0),
+            target_error: None,
+        };
+        let cap = until.pass_limit() as u64;
+        let m = ppm(until);
+        assert_eq!(m.fraction(passes(3, cap), 3, 2.5), 0.25);
+        assert_eq!(m.fraction(passes(3, cap), 3, 0.0), 3.0 / cap as f64);
+    }
+
+    /// Passes and a time limit: whichever runs out first leads.
+    #[test]
+    fn passes_and_a_time_limit_report_the_larger_share() {
+        let both = Stop {
+            time_limit: Some(10.0),
+            ..Stop::after(100)
+        };
+        let m = ppm(both);
+        assert_eq!(m.fraction(passes(50, 100), 50, 1.0), 0.5);
+        assert_eq!(m.fraction(passes(10, 100), 10, 8.0), 0.8);
+        assert_eq!(
+            ppm(Stop::after(100)).fraction(passes(10, 100), 10, 8.0),
+            0.1
+        );
     }
 }
