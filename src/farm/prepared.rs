@@ -1,8 +1,11 @@
 //! A worker's copy of a task's job: its spec and scene read from the store and the scene
-//! built, kept while the worker renders that job's tasks; and why that may fail, which
-//! decides whether the task failed or is given back.
+//! built, kept while the worker renders that job's tasks; the store's reads tried again
+//! through a blip.
 
 use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::time::Instant;
 
 use super::FarmError;
 use super::records::JobSource;
@@ -24,22 +27,27 @@ pub(super) struct Prepared {
     pub(super) reference: Option<Image>,
 }
 
-/// Why a task's job could not be prepared.
-#[derive(Debug, PartialEq)]
-pub(super) enum Unprepared {
-    /// The job cannot render (its spec, its scene, its reference): a failure of the task.
-    Job(String),
-    /// The store was out of reach: no fault of the task's.
-    StoreAway(String),
-}
-
-impl Unprepared {
-    /// A store error while reading `what`.
-    pub(super) fn of(e: FarmError, what: &str) -> Unprepared {
-        let text = format!("{what}: {e}");
-        match e.is_transient() {
-            true => Unprepared::StoreAway(text),
-            false => Unprepared::Job(text),
+/// `read` until it succeeds, fails for good, or `patience.0` has passed since the first
+/// try (then its last error), trying again every `patience.1` while the store is out of
+/// reach (`FarmError::is_transient`).
+pub(super) async fn patiently<T, F, Fut>(
+    patience: (Duration, Duration),
+    what: &str,
+    mut read: F,
+) -> Result<T, String>
+where
+    F: FnMut() -> Fut,
+    Fut: Future<Output = Result<T, FarmError>>,
+{
+    let give_up = Instant::now() + patience.0;
+    loop {
+        match read().await {
+            Ok(v) => return Ok(v),
+            Err(e) if e.is_transient() && Instant::now() < give_up => {
+                tracing::warn!("{what} (trying again): {e}");
+                tokio::time::sleep(patience.1).await;
+            }
+            Err(e) => return Err(format!("{what}: {e}")),
         }
     }
 }
@@ -80,12 +88,36 @@ pub(super) fn prepare(
 mod tests {
     use super::*;
 
-    /// A store out of reach gives the task back; a job that cannot render fails it.
-    #[test]
-    fn a_store_away_is_not_the_task_s_failure() {
-        let away = Unprepared::of(FarmError::Db(sqlx::Error::PoolTimedOut), "reading the job");
-        assert!(matches!(away, Unprepared::StoreAway(_)), "{away:?}");
-        let gone = Unprepared::of(FarmError::NoSuchJob(3), "reading the job");
-        assert_eq!(gone, Unprepared::Job("reading the job: no job 3".into()));
+    /// Counts the reads, and fails the first `away` of them as a store out of reach.
+    async fn read(calls: &std::cell::Cell<u32>, away: u32) -> Result<u32, FarmError> {
+        calls.set(calls.get() + 1);
+        match calls.get() <= away {
+            true => Err(FarmError::Db(sqlx::Error::PoolTimedOut)),
+            false => Ok(calls.get()),
+        }
+    }
+
+    /// A blip is waited out; a store that stays away, or a job that is gone, is an error
+    /// (the task's failure), so no task is claimed and given back forever.
+    #[tokio::test]
+    async fn a_blip_is_waited_out_and_a_lasting_failure_is_the_task_s() {
+        let calls = std::cell::Cell::new(0);
+        let pause = Duration::from_millis(1);
+        let got = patiently((Duration::from_secs(60), pause), "r", || read(&calls, 2)).await;
+        assert_eq!(got, Ok(3));
+        calls.set(0);
+        let got = patiently((Duration::ZERO, pause), "r", || read(&calls, 5)).await;
+        assert_eq!((got.is_err(), calls.get()), (true, 1));
+        calls.set(0);
+        let gone = patiently(
+            (Duration::from_secs(60), pause),
+            "reading the job",
+            || async {
+                calls.set(calls.get() + 1);
+                Err::<u32, _>(FarmError::NoSuchJob(3))
+            },
+        );
+        assert_eq!(gone.await, Err("reading the job: no job 3".into()));
+        assert_eq!(calls.get(), 1);
     }
 }

@@ -15,7 +15,7 @@ use anyhow::Context;
 use tokio::sync::watch;
 
 use super::outcome::{job_stats, merge};
-use super::prepared::{Prepared, Unprepared, prepare};
+use super::prepared::{Prepared, patiently, prepare};
 use super::queue::CANCEL_CHANNEL;
 use super::records::JobImages;
 use super::task::{UnitResult, render_unit};
@@ -148,18 +148,8 @@ impl Task<'_> {
             Some(p) => p,
             None => match self.prepare(lease.job_id).await {
                 Ok(p) => Arc::new(p),
-                Err(Unprepared::Job(e)) => {
+                Err(e) => {
                     self.report_failure(&lease, &e).await;
-                    return None;
-                }
-                Err(Unprepared::StoreAway(e)) => {
-                    // Not the task's fault: give it back uncounted (if the store is still
-                    // away, the lease expires instead), and let the store come back.
-                    tracing::warn!(job = lease.job_id, "reading the job: {e}: giving it back");
-                    if let Err(e) = self.queue.release(&lease).await {
-                        tracing::warn!("giving the task back: {e}");
-                    }
-                    tokio::time::sleep(RETRY).await;
                     return None;
                 }
             },
@@ -229,16 +219,18 @@ impl Task<'_> {
     }
 
     /// Read the job's spec and scene and build the scene (its BVH) on the worker's pool.
-    async fn prepare(&self, job_id: i64) -> Result<Prepared, Unprepared> {
-        let source = self.queue.job_source(job_id).await;
-        let source = source.map_err(|e| Unprepared::of(e, "reading the job"))?;
+    /// A store out of reach is tried again for half a lease (the lease holds meanwhile)
+    /// before the task counts a failure: a blip costs nothing, a store that keeps failing
+    /// the read fails the job after its attempts, as any other failure.
+    async fn prepare(&self, job_id: i64) -> Result<Prepared, String> {
+        let patience = (self.cfg.lease / 2, RETRY);
+        let read = || self.queue.job_source(job_id);
+        let source = patiently(patience, "reading the job", read).await?;
         let (catalog, pool) = (self.catalog.clone(), self.pool.clone());
         let mut prepared =
             tokio::task::spawn_blocking(move || prepare(job_id, &source, &catalog, &pool))
                 .await
-                .map_err(|e| e.to_string())
-                .and_then(|p| p)
-                .map_err(Unprepared::Job)?;
+                .map_err(|e| e.to_string())??;
         if let Some(rid) = prepared.spec.reference_job {
             prepared.reference = Some(self.reference(rid).await?);
         }
@@ -247,14 +239,17 @@ impl Task<'_> {
 
     /// Reference job `rid`'s image, from the store; it may have been deleted since the
     /// job was submitted.
-    async fn reference(&self, rid: i64) -> Result<Image, Unprepared> {
+    async fn reference(&self, rid: i64) -> Result<Image, String> {
         let gone = |e: String| {
             format!("reference job {rid}: its image cannot be read (was the job deleted?): {e}")
         };
-        let bytes = self.queue.job_image(rid, true).await;
-        let bytes = bytes.map_err(|e| Unprepared::of(e, &format!("reference job {rid}")))?;
-        let bytes = bytes.ok_or_else(|| Unprepared::Job(gone("no image".into())))?;
-        output::decode_exr(&bytes).map_err(|e| Unprepared::Job(gone(e.to_string())))
+        let patience = (self.cfg.lease / 2, RETRY);
+        let read = || self.queue.job_image(rid, true);
+        let bytes = patiently(patience, "reading the reference", read).await;
+        let bytes = bytes
+            .map_err(gone)?
+            .ok_or_else(|| gone("no image".into()))?;
+        output::decode_exr(&bytes).map_err(|e| gone(e.to_string()))
     }
 
     async fn report_failure(&self, lease: &Lease, reason: &str) {

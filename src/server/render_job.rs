@@ -83,7 +83,10 @@ impl JobRender<'_> {
             piece: None,
             rows: None,
         };
-        let mut on_pass = |state: &PpmState| self.after_pass(state, &live);
+        let mut on_pass = |state: &PpmState| {
+            publish.pass_done(state.elapsed());
+            self.after_pass(state, &live)
+        };
         let out =
             pool.install(|| run(&scene, &self.spec.render, inputs, &control, &mut on_pass))?;
         if out.paused() {
@@ -170,6 +173,10 @@ struct Publisher<'a> {
     started: Instant,
     /// Progressive passes done (the last `passes` report).
     passes: AtomicU64,
+    /// The engine's seconds of passes (its time limit's clock, which leaves out the scene
+    /// build, the writes between passes and the time before a resume) at an instant: from
+    /// the first `passes` report, set again after every pass.
+    pass_clock: Mutex<Option<(f64, Instant)>>,
     last: Mutex<(f64, Option<&'static str>)>,
 }
 
@@ -180,17 +187,32 @@ impl<'a> Publisher<'a> {
             live,
             started: Instant::now(),
             passes: AtomicU64::new(0),
+            pass_clock: Mutex::new(None),
             last: Mutex::new((0.0, None)),
         }
+    }
+
+    /// A pass ended, `seconds` of passes in all.
+    fn pass_done(&self, seconds: f64) {
+        *self.pass_clock.lock().unwrap_or_else(|e| e.into_inner()) =
+            Some((seconds, Instant::now()));
+    }
+
+    /// The engine's seconds of passes by now (0 before the passes start).
+    fn pass_seconds(&self) -> f64 {
+        let clock = self.pass_clock.lock().unwrap_or_else(|e| e.into_inner());
+        clock.map_or(0.0, |(seconds, at)| seconds + at.elapsed().as_secs_f64())
     }
 
     fn progress(&self, p: Progress) {
         if p.phase == crate::render::Phase::Passes {
             self.passes.store(p.done, Ordering::Relaxed);
+            let mut clock = self.pass_clock.lock().unwrap_or_else(|e| e.into_inner());
+            clock.get_or_insert_with(|| (0.0, Instant::now()));
         }
-        let elapsed = self.started.elapsed().as_secs_f64();
         let passes = self.passes.load(Ordering::Relaxed);
-        let f = self.model.fraction(p, passes, elapsed).clamp(0.0, 0.999);
+        let f = self.model.fraction(p, passes, self.pass_seconds());
+        let f = f.clamp(0.0, 0.999);
         let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
         let phase = Some(p.phase.name());
         if f < last.0 + 0.005 && phase == last.1 {
@@ -198,6 +220,7 @@ impl<'a> Publisher<'a> {
         }
         let f = f.max(last.0);
         *last = (f, phase);
+        let elapsed = self.started.elapsed().as_secs_f64();
         let eta = (f > 0.02).then(|| elapsed * (1.0 - f) / f);
         self.live.send_modify(|s| {
             if s.status == Status::Running {

@@ -168,13 +168,14 @@ impl ProgressModel {
         }
     }
 
-    /// The fraction of the render done when a phase reports `p`, `elapsed` seconds into
-    /// it, given `passes_done` (the last `Phase::Passes` report's count).
-    pub fn fraction(&self, p: Progress, passes_done: u64, elapsed: f64) -> f64 {
+    /// The fraction of the render done when a phase reports `p`, given `passes_done` (the
+    /// last `Phase::Passes` report's count) and `pass_seconds`, the render's seconds of
+    /// passes by now (`PpmState::elapsed`'s clock, which its time limit counts).
+    pub fn fraction(&self, p: Progress, passes_done: u64, pass_seconds: f64) -> f64 {
         let by_time = self
             .time_limit
             .filter(|&t| t > 0.0)
-            .map_or(0.0, |t| elapsed / t);
+            .map_or(0.0, |t| pass_seconds / t);
         self.fraction_of_passes(p, passes_done).max(by_time)
     }
 
