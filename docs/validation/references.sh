@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Render the Mitsuba 3 references for docs/validation.md (../shared/refcheck, path tracing).
-#   docs/validation/references.sh [OUT_DIR]      (default target/refs; about 13 minutes on 2 cores)
+#   docs/validation/references.sh [OUT_DIR]      (default target/refs; about 40 minutes on 2 cores)
 # For each scene: two independent references (seeds 1 and 2), their comparison (the
 # reference's own noise floor), and their mean (the reference used).
 set -euo pipefail
@@ -13,7 +13,7 @@ W=256; H=256
 # scene file : samples per pixel per seed
 SCENES=(
   "scenes/twins/cornell_mirror_glass_twin.json:4096"
-  "scenes/twins/glass_orange_twin.json:4096"
+  "scenes/twins/glass_orange_twin.json:16384"
   "scenes/cornell_spheres.json:1024"
   "scenes/cornell.json:1024"
   "scenes/knot.json:1024"
