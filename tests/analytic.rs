@@ -4,7 +4,8 @@ mod common;
 
 use std::f64::consts::PI;
 
-use common::{analytic_pixels, fresnel, point_lit, rel, render_image, scene};
+use common::glass_sphere::exits;
+use common::{analytic_pixels, point_lit, rel, render_image, scene};
 use glam::DVec3;
 use photonbox::render::photon::PhotonStore;
 use photonbox::render::{Control, Scene, trace_maps};
@@ -188,58 +189,24 @@ fn closed_sphere_final_gather_within_2_percent() {
 }
 
 /// Fraction of a point light's power that a glass sphere sends down to an infinite floor:
-/// a 2-D trace of each ray of the light's cone through the sphere (every internal
-/// reflection followed), integrated over the cone.
+/// every exit of each ray of the light's cone through the sphere (`common::glass_sphere`),
+/// integrated over the cone.
 fn glass_sphere_floor_fraction(d: f64, r: f64, ior: f64) -> f64 {
     let alpha_max = (r / d).asin();
     let steps = 20_000;
-    let mut total = 0.0;
-    for s in 0..steps {
-        let alpha = (s as f64 + 0.5) / steps as f64 * alpha_max;
-        // Light at (0, d), sphere at the origin; ray going down at angle alpha.
-        let o = glam::DVec2::new(0.0, d);
-        let dir = glam::DVec2::new(alpha.sin(), -alpha.cos());
-        let b = o.dot(dir);
-        let c = o.length_squared() - r * r;
-        let t = -b - (b * b - c).max(0.0).sqrt();
-        let mut p = o + dir * t;
-        let n = p / r;
-        let cos_i = -dir.dot(n);
-        let f = fresnel(cos_i, 1.0, ior);
-        let mut down = 0.0;
-        let reflected = dir + 2.0 * cos_i * n;
-        if reflected.y < 0.0 {
-            down += f;
-        }
-        // Refract in.
-        let eta = 1.0 / ior;
-        let cos_t = (1.0 - eta * eta * (1.0 - cos_i * cos_i)).sqrt();
-        let mut inner = (eta * dir + (eta * cos_i - cos_t) * n).normalize();
-        let mut w = 1.0 - f;
-        for _ in 0..64 {
-            // Chord to the next interface.
-            let b = p.dot(inner);
-            p += inner * (-2.0 * b);
-            let n_out = p / r;
-            let cos_in = inner.dot(n_out);
-            let f_in = fresnel(cos_in, ior, 1.0);
-            if f_in < 1.0 {
-                let cos_out = (1.0 - ior * ior * (1.0 - cos_in * cos_in)).sqrt();
-                let out = (ior * inner + (cos_out - ior * cos_in) * n_out).normalize();
-                if out.y < 0.0 {
-                    down += w * (1.0 - f_in);
-                }
-            }
-            w *= f_in;
-            inner -= 2.0 * cos_in * n_out;
-            if w < 1e-9 {
-                break;
-            }
-        }
-        // Solid-angle weight of this ring of the cone, as a fraction of the full sphere.
-        total += down * 2.0 * PI * alpha.sin() * (alpha_max / steps as f64) / (4.0 * PI);
-    }
-    total
+    let da = alpha_max / steps as f64;
+    (0..steps)
+        .map(|s| {
+            let alpha = (s as f64 + 0.5) * da;
+            let down: f64 = exits(d, r, ior, alpha)
+                .iter()
+                .filter(|e| e.dir.y < 0.0)
+                .map(|e| e.w)
+                .sum();
+            // Solid-angle weight of this ring of the cone, as a fraction of the full sphere.
+            down * 2.0 * PI * alpha.sin() * da / (4.0 * PI)
+        })
+        .sum()
 }
 
 /// (c) A glass sphere transmits the expected fraction of the light's power to the floor.

@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod glass_sphere;
+
 use photonbox::render::{Control, Image, RenderOutput, Scene, render};
 use photonbox::spec::RenderSpec;
 
