@@ -17,6 +17,7 @@ mod camera_paths;
 mod effects;
 mod light_paths;
 mod lights;
+mod radius;
 #[cfg(test)]
 mod tests;
 mod vertex;
@@ -30,10 +31,10 @@ use crate::render::effects::Analysis;
 use crate::render::film::{Image, render_film};
 use crate::render::light::LightPicker;
 use crate::render::outcome::RenderError;
-use crate::render::photon::{KdTree, KnnScratch, PhotonMaps};
+use crate::render::photon::{KdTree, PhotonMaps};
 use crate::render::ppm::PpmState;
 use crate::render::progressive::{PassAt, PassOutput, PassResult, Progression};
-use crate::render::sampling::{Sampler, Stream, splitmix64};
+use crate::render::sampling::{Sampler, Stream};
 use crate::render::scene::Scene;
 use crate::render::stats::{RenderStats, StatsInput, collect};
 use crate::spec::{EffectSwitches, RenderSpec};
@@ -108,20 +109,6 @@ impl Iteration<'_> {
     }
 }
 
-/// Light vertices of a pilot iteration that set the automatic merge radius (their k-NN
-/// distances, scaled to a full iteration's density).
-const PILOT_PATHS: u64 = 8192;
-
-/// The k of the automatic merge radius: the median distance to the k-th nearest light
-/// vertex of a full iteration. Small: merging carries the paths connections cannot (caustics
-/// seen through specular surfaces), and its bias grows with the radius; a disc holds about
-/// this many of an iteration's vertices (a radius near SmallVCM's default, 0.003 of the
-/// scene's radius at 512x512).
-const RADIUS_K: usize = 4;
-
-/// The automatic merge radius never exceeds this fraction of the scene's extent.
-const MAX_RADIUS_FRACTION: f32 = 0.1;
-
 /// The passes of one bidirectional render.
 pub(crate) struct BidirPasses<'a> {
     pub scene: &'a Scene,
@@ -185,38 +172,6 @@ impl<'a> BidirPasses<'a> {
             n,
             paths: w * h,
         }
-    }
-
-    /// The automatic initial merge radius: the median distance to the k-th nearest vertex
-    /// among a pilot iteration's light vertices, scaled by the square root of its density
-    /// relative to a full iteration's (in two dimensions a k-NN radius goes as
-    /// 1/sqrt(density)).
-    fn pilot_radius(&self, seed: u64, control: &Control) -> Result<f32, RenderError> {
-        let r_max = MAX_RADIUS_FRACTION * self.scene.extent().max(f32::MIN_POSITIVE);
-        let mut pilot = self.iteration(splitmix64(seed ^ 0x7069_6c6f_7400), 0, 0.0);
-        pilot.paths = PILOT_PATHS;
-        pilot.modes = Modes::Bdpt;
-        let paths = trace_light_paths(&pilot, control)?;
-        if paths.vertices.len() <= RADIUS_K {
-            return Ok(r_max);
-        }
-        let full = self.camera.width as f32 * self.camera.height as f32;
-        let tree = KdTree::build(paths.vertices);
-        let mut scratch = KnnScratch::default();
-        let step = tree.len().div_ceil(1024);
-        let mut r: Vec<f32> = tree
-            .items()
-            .iter()
-            .step_by(step)
-            .map(|x| {
-                let q = x.sp.p;
-                tree.knn(q, RADIUS_K + 1, r_max * r_max, &|_| true, &mut scratch)
-                    .sqrt()
-            })
-            .collect();
-        r.sort_by(f32::total_cmp);
-        let scale = (PILOT_PATHS as f32 / full).sqrt();
-        Ok((r[r.len() / 2] * scale).min(r_max))
     }
 
     /// One iteration: light subpaths, then camera subpaths; its image and the non-finite
