@@ -100,3 +100,22 @@ fn schemathesis_finds_no_server_error_and_no_answer_outside_the_document() {
     assert!(documented >= 11, "{documented} operations documented");
     assert_eq!(ops["tested"], documented, "{ops}");
 }
+
+/// The busy 503 of a job submission is documented with its `Retry-After` header (the server
+/// sends it: `server::error`'s tests), so a client generated from the document can honour it.
+#[test]
+fn the_busy_503_documents_its_retry_after_header() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(&dir.path().join("data"), &[]);
+    let doc: serde_json::Value = client()
+        .get(s.url("/api/openapi.json"))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let busy = &doc["paths"]["/api/jobs"]["post"]["responses"]["503"];
+    assert_eq!(
+        busy["headers"]["Retry-After"]["schema"]["type"], "integer",
+        "{busy}"
+    );
+}

@@ -35,7 +35,8 @@ use crate::spec::SpecForm;
             body = ErrorBody),
         (status = 429, description = "You have the most queued jobs allowed", body = ErrorBody),
         (status = 503, description = "The server is reading as many large bodies as it \
-            takes at once: try again", body = ErrorBody),
+            takes at once: try again", body = ErrorBody,
+            headers(("Retry-After" = u32, description = "Seconds to wait before trying again"))),
         AuthErrors,
     ))]
 pub async fn submit_job(
