@@ -84,12 +84,7 @@ fn schemathesis_finds_no_server_error_and_no_answer_outside_the_document() {
         summary["errors"]
     );
     // Every documented operation was exercised.
-    let doc: serde_json::Value = client()
-        .get(s.url("/api/openapi.json"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let doc = document(&s);
     let documented: usize = doc["paths"]
         .as_object()
         .unwrap()
@@ -107,15 +102,20 @@ fn schemathesis_finds_no_server_error_and_no_answer_outside_the_document() {
 fn the_busy_503_documents_its_retry_after_header() {
     let dir = tempfile::tempdir().unwrap();
     let s = Server::start(&dir.path().join("data"), &[]);
-    let doc: serde_json::Value = client()
-        .get(s.url("/api/openapi.json"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let doc = document(&s);
     let busy = &doc["paths"]["/api/jobs"]["post"]["responses"]["503"];
     assert_eq!(
         busy["headers"]["Retry-After"]["schema"]["type"], "integer",
         "{busy}"
     );
+}
+
+/// The server's OpenAPI document.
+fn document(s: &Server) -> serde_json::Value {
+    client()
+        .get(s.url("/api/openapi.json"))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap()
 }
