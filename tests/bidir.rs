@@ -297,17 +297,19 @@ fn every_technique_sees_the_fresnel_share_through_a_glass_sphere() {
 
 /// A point light over a glass sphere over a dark diffuse floor (albedo 0.01, so that light
 /// the floor sends back through the sphere adds under 0.1%), the floor seen straight down
-/// from between the sphere and the floor, so that the view takes in the sphere's whole shadow.
+/// from between the sphere and the floor, a vertical field of view of `fov` degrees: at 80
+/// the view lies inside the sphere's shadow (only light through the glass), at 120 it takes
+/// in the whole shadow and the lit floor around it.
 const CAUSTIC_D: f64 = 2.5;
 const CAUSTIC_FLOOR: f64 = -3.0;
 const CAUSTIC_CAMERA: f64 = -1.1;
 const CAUSTIC_ALBEDO: f64 = 0.01;
 
-fn caustic_floor(ior: f64, pixels: u32) -> String {
+fn caustic_floor(ior: f64, pixels: u32, fov: f64) -> String {
     format!(
         r#"{{
-        "camera": {{"position": [0, {CAUSTIC_CAMERA}, 0], "look_at": [0, -3, 0], "up": [0, 0, -1],
-                    "fov": 120, "width": {pixels}, "height": {pixels}}},
+        "camera": {{"position": [0, {CAUSTIC_CAMERA}, 0], "look_at": [0, {CAUSTIC_FLOOR}, 0],
+                    "up": [0, 0, -1], "fov": {fov}, "width": {pixels}, "height": {pixels}}},
         "materials": {{"glass": {{"type": "dielectric", "ior": {ior}}},
                        "floor": {{"type": "diffuse", "albedo": [{a}, {a}, {a}]}}}},
         "objects": [
@@ -321,16 +323,28 @@ fn caustic_floor(ior: f64, pixels: u32) -> String {
     )
 }
 
+/// Half the width of the square of floor [`caustic_floor`]'s camera sees at `fov` degrees.
+fn caustic_view(fov: f64) -> f64 {
+    (CAUSTIC_CAMERA - CAUSTIC_FLOOR) * (fov / 2.0).to_radians().tan()
+}
+
 /// The power (W) reaching the square of floor [`caustic_floor`]'s camera sees: what falls on
-/// it directly (the square's solid angle from the light less the sphere's cone), and every
-/// exit of each ray of the cone that lands in it.
+/// it directly (none inside the sphere's shadow; where the square holds the whole shadow,
+/// its solid angle from the light less the sphere's cone), and every exit of each ray of the
+/// cone that lands in it.
 fn caustic_floor_power(ior: f64, half_width: f64) -> f64 {
     let (power, h) = (100.0, CAUSTIC_D - CAUSTIC_FLOOR);
     let alpha_max = (1.0 / CAUSTIC_D).asin();
-    let s2 = half_width * half_width;
-    let square = 4.0 * (s2 / (s2 + h * h)).asin();
-    let cone = 2.0 * PI * (1.0 - alpha_max.cos());
-    let direct = power * (square - cone) / (4.0 * PI);
+    let shadow = h * alpha_max.tan();
+    let direct = if half_width * 2f64.sqrt() < shadow {
+        0.0
+    } else {
+        assert!(half_width > shadow, "the view cuts the shadow's edge");
+        let s2 = half_width * half_width;
+        let square = 4.0 * (s2 / (s2 + h * h)).asin();
+        let cone = 2.0 * PI * (1.0 - alpha_max.cos());
+        power * (square - cone) / (4.0 * PI)
+    };
     let steps = 100_000;
     let da = alpha_max / steps as f64;
     let through: f64 = (0..steps)
@@ -349,17 +363,23 @@ fn caustic_floor_power(ior: f64, half_width: f64) -> f64 {
 }
 
 /// The glass sphere's Fresnel share as a caustic on the floor (issue 20, acceptance 1): the
-/// power the floor receives, read from the image (a diffuse floor's radiance is albedo/pi
-/// times its irradiance, and the camera's view is a square of known size parallel to the
-/// image plane), against the closed form. `pt` is not among them: a point light behind glass
-/// is reached by no camera path (it is seen through the sphere above).
+/// power the floor receives inside the sphere's shadow, read from the image (a diffuse
+/// floor's radiance is albedo/pi times its irradiance, and the camera's view is a square of
+/// known size parallel to the image plane), against the closed form. `pt` is not among them:
+/// a point light behind glass is reached by no camera path (it is seen through the sphere
+/// above).
 #[test]
 fn light_tracing_bdpt_and_vcm_carry_the_fresnel_share_to_the_floor() {
-    let half_width = (CAUSTIC_CAMERA - CAUSTIC_FLOOR) * 60f64.to_radians().tan();
+    let half_width = caustic_view(80.0);
     for ior in [1.5, 4.0] {
-        let s = scene(&caustic_floor(ior, 128));
+        let s = scene(&caustic_floor(ior, 128, 80.0));
         let want = caustic_floor_power(ior, half_width);
-        for (name, spec) in deep_family(200).into_iter().skip(1) {
+        // vcm's merges of this concentrated caustic are noisier than the light tracer's
+        // splats (at 200 passes two seeds read -0.3% and -0.8% at index 4): four times the
+        // passes.
+        let [_, lt, bdpt, _] = deep_family(200);
+        let [.., vcm] = deep_family(800);
+        for (name, spec) in [lt, bdpt, vcm] {
             let mean = render_checked(&s, &spec).image.mean_rgb(0, 0, 128, 128)[0];
             let got = PI / CAUSTIC_ALBEDO * mean * (2.0 * half_width).powi(2);
             eprintln!(
@@ -381,8 +401,8 @@ fn light_tracing_bdpt_and_vcm_carry_the_fresnel_share_to_the_floor() {
 /// camera's side measured too it is 0.94, and -0.16%.
 #[test]
 fn vcm_s_automatic_radius_keeps_an_open_floor_at_low_resolution_within_half_a_percent() {
-    let half_width = (CAUSTIC_CAMERA - CAUSTIC_FLOOR) * 60f64.to_radians().tan();
-    let s = scene(&caustic_floor(1.5, 32));
+    let half_width = caustic_view(120.0);
+    let s = scene(&caustic_floor(1.5, 32, 120.0));
     let want = caustic_floor_power(1.5, half_width);
     let [.., (_, vcm)] = deep_family(2000);
     let out = render_checked(&s, &vcm);

@@ -93,7 +93,8 @@ pub struct PpmReport {
     /// Initial radius of the global and caustic maps' estimates (scene units).
     pub radius_initial_global: f64,
     pub radius_initial_caustic: f64,
-    /// "radius": given; "auto": median k-NN distance (k = `params.k`) in the first pass.
+    /// "radius": given; "auto": ppm's median k-NN distance (k = `params.k`) in the first
+    /// pass, or vcm's pilot radius (`render/bidir/radius.rs`).
     pub radius_source: &'static str,
     pub stopped_by: StopReason,
     /// Every pass up to 256, then thinned to about 256 per doubling of the pass count.

@@ -171,8 +171,9 @@ pub struct SpecForm {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[arg(long)]
     pub alpha: Option<f64>,
-    /// ppm, vcm: initial radius in scene units (default: the median k-NN distance among the
-    /// first pass's photons or light vertices).
+    /// ppm, vcm: initial radius in scene units (default: ppm, the median k-NN distance among
+    /// the first pass's photons; vcm, the median 4-NN distance to a pilot iteration's light
+    /// vertices around them and around the points the camera sees, the smaller).
     #[serde(skip_serializing_if = "Option::is_none")]
     #[arg(long)]
     pub radius: Option<f32>,

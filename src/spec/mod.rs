@@ -90,8 +90,9 @@ pub struct Passes {
 pub struct Merging {
     pub passes: Passes,
     pub alpha: f64,
-    /// Initial merge radius (scene units); `None`: from the k-NN distances of the first
-    /// pass's light vertices.
+    /// Initial merge radius (scene units); `None`: from the 4-NN distances to a pilot
+    /// iteration's light vertices, around them and around the points the camera sees
+    /// (`render/bidir/radius.rs`).
     pub radius: Option<f32>,
 }
 

@@ -21,7 +21,9 @@ pub struct Exit {
 /// refraction out after 0, 1, 2, ... internal reflections, up to 64 of them or until less
 /// than 1e-12 of the power is left inside (a ray that enters near grazing keeps nearly all of
 /// it for thousands of reflections, but carries almost none: the cap moves the tests' figures
-/// by less than 1e-9). A ray that misses is its own exit.
+/// by about 1e-7). The point and direction are put back on the sphere and to unit length at
+/// every bounce: without that, rounding grows about twentyfold a bounce near the axis. A ray
+/// that misses is its own exit.
 pub fn exits(d: f64, r: f64, ior: f64, alpha: f64) -> Vec<Exit> {
     let o = DVec2::new(0.0, d);
     let dir = DVec2::new(alpha.sin(), -alpha.cos());
@@ -46,6 +48,7 @@ pub fn exits(d: f64, r: f64, ior: f64, alpha: f64) -> Vec<Exit> {
     for _ in 0..64 {
         // The chord to the next interface.
         p += inner * (-2.0 * p.dot(inner));
+        p = p.normalize() * r;
         let n_out = p / r;
         let cos_in = inner.dot(n_out);
         let f_in = fresnel(cos_in, ior, 1.0);
@@ -58,7 +61,7 @@ pub fn exits(d: f64, r: f64, ior: f64, alpha: f64) -> Vec<Exit> {
             });
         }
         w *= f_in;
-        inner -= 2.0 * cos_in * n_out;
+        inner = (inner - 2.0 * cos_in * n_out).normalize();
         if w < 1e-12 {
             break;
         }

@@ -2,7 +2,7 @@
 //! median distance to the k-th nearest of them, scaled to a full iteration's density (in two
 //! dimensions a k-NN radius goes as 1/sqrt(density)). Measured twice, and the smaller kept:
 //! around the light vertices themselves (where the light lands, the brightest places
-//! weighing most), and around the points the camera sees. The second matters where most of
+//! weighing most), and around the first non-specular points the camera sees. The second matters where most of
 //! the light lands out of view (an open floor, the lights far out): there the light vertices
 //! are sparse, their radius large, and the merges inside the view blur what the camera sees
 //! (SmallVCM takes a fixed share of the scene's size instead; pbrt-v4's SPPM a given radius).
@@ -58,8 +58,9 @@ impl BidirPasses<'_> {
         Ok((r * scale).min(r_max))
     }
 
-    /// The first surfaces the camera sees that merging can happen on (not mirror or glass),
-    /// through a grid of at most [`QUERIES`] pixel centres.
+    /// The first surfaces the camera sees, through a grid of about [`QUERIES`] pixel centres,
+    /// where they are not mirror or glass (no path is followed through those: a view
+    /// entirely through glass leaves the light vertices' own radius).
     fn seen_points(&self) -> Vec<glam::Vec3A> {
         let (w, h) = (self.camera.width, self.camera.height);
         let step = ((w as f32 * h as f32 / QUERIES as f32).sqrt().ceil() as u32).max(1);
