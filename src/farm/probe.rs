@@ -2,6 +2,8 @@
 //! routes, a worker started with `--addr` answers them alone (the Docker image's
 //! HEALTHCHECK asks every container the same `/healthz`).
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use axum::Router;
 use axum::extract::State;
 use axum::http::{StatusCode, header};
@@ -14,15 +16,36 @@ use super::{FarmError, Queue};
 /// Healthy when the store answers.
 pub async fn health(queue: &Queue) -> Response {
     match sqlx::query("SELECT 1").execute(queue.pool()).await {
-        Ok(_) => "ok\n".into_response(),
+        Ok(_) => {
+            store_answered();
+            "ok\n".into_response()
+        }
         Err(e) => store_unavailable(&e),
     }
 }
 
+/// Whether this process's last probe found the store away. A probe logs when that changes,
+/// not at every call: a load balancer asking every few seconds through an outage would
+/// otherwise fill the log with the same line.
+static STORE_AWAY: AtomicBool = AtomicBool::new(false);
+
+/// Records whether the store answered; true when that differs from the last probe's.
+fn store_changed(away: &AtomicBool, now_away: bool) -> bool {
+    away.swap(now_away, Ordering::Relaxed) != now_away
+}
+
+fn store_answered() {
+    if store_changed(&STORE_AWAY, false) {
+        tracing::info!("probe: the store answers again");
+    }
+}
+
 /// 503 for an unauthenticated probe whose store failed: the store's error (its address,
-/// its user) goes to the log, not to whoever asked.
+/// its user) goes to the log, once an outage, not to whoever asked.
 fn store_unavailable(e: &dyn std::fmt::Display) -> Response {
-    tracing::warn!("probe: the store: {e}");
+    if store_changed(&STORE_AWAY, true) {
+        tracing::warn!("probe: the store: {e} (not logged again until it answers)");
+    }
     (StatusCode::SERVICE_UNAVAILABLE, "store unavailable\n").into_response()
 }
 
@@ -30,7 +53,10 @@ fn store_unavailable(e: &dyn std::fmt::Display) -> Response {
 /// text; unauthenticated, like one box's, so nothing in it names or numbers a user).
 pub async fn metrics(queue: &Queue) -> Response {
     match metrics_text(queue).await {
-        Ok(out) => ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], out).into_response(),
+        Ok(out) => {
+            store_answered();
+            ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], out).into_response()
+        }
         Err(e) => store_unavailable(&e),
     }
 }
@@ -126,5 +152,19 @@ async fn worker_metrics(State(joined): State<watch::Receiver<Option<Queue>>>) ->
     match queue {
         Some(q) => metrics(&q).await,
         None => joining(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An outage is logged when it starts and when it ends, not at every probe between.
+    #[test]
+    fn a_probe_logs_only_when_the_store_comes_or_goes() {
+        let away = AtomicBool::new(false);
+        let probes = [false, true, true, true, false, false, true];
+        let logged: Vec<bool> = probes.iter().map(|&a| store_changed(&away, a)).collect();
+        assert_eq!(logged, [false, true, false, false, true, false, true]);
     }
 }
