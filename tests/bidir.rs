@@ -222,6 +222,15 @@ fn auto_takes_a_photon_render_for_a_short_budget_on_glass() {
     assert_eq!(diffuse.stats.effects["integrator"].how, "auto chose bdpt");
 }
 
+/// Asserts that `got` is within 0.5% of `want`, printing both.
+fn within_half_a_percent(label: &str, got: f64, want: f64) {
+    eprintln!("{label}: {got:.5} vs {want:.5} ({:+.5})", rel(got, want));
+    assert!(
+        rel(got, want).abs() < 0.005,
+        "{label}: {got:.5} vs {want:.5}"
+    );
+}
+
 /// Each technique with `passes` passes, following up to 64 bounces (a glass sphere holds
 /// light for many internal reflections at a high index).
 fn deep_family(passes: u32) -> [(&'static str, RenderSpec); 4] {
@@ -283,14 +292,7 @@ fn every_technique_sees_the_fresnel_share_through_a_glass_sphere() {
         let want = seen_through_glass_mean(ior);
         for (name, spec) in deep_family(400) {
             let got = render_checked(&s, &spec).image.mean_rgb(0, 0, 32, 32)[0];
-            eprintln!(
-                "seen through glass {ior}, {name}: {got:.5} vs {want:.5} ({:+.5})",
-                rel(got, want)
-            );
-            assert!(
-                rel(got, want).abs() < 0.005,
-                "{name}, index {ior}: {got:.5} vs {want:.5}"
-            );
+            within_half_a_percent(&format!("seen through glass {ior}, {name}"), got, want);
         }
     }
 }
@@ -328,6 +330,14 @@ fn caustic_view(fov: f64) -> f64 {
     (CAUSTIC_CAMERA - CAUSTIC_FLOOR) * (fov / 2.0).to_radians().tan()
 }
 
+/// The power (W) on the square of floor [`caustic_floor`]'s camera sees, read from its
+/// image: a diffuse floor's radiance is albedo/pi times its irradiance, and the square is
+/// parallel to the image plane, so the image's mean is the square's.
+fn caustic_floor_seen(image: &photonbox::render::Image, half_width: f64) -> f64 {
+    let mean = image.mean_rgb(0, 0, image.width, image.height)[0];
+    PI / CAUSTIC_ALBEDO * mean * (2.0 * half_width).powi(2)
+}
+
 /// The power (W) reaching the square of floor [`caustic_floor`]'s camera sees: what falls on
 /// it directly (none inside the sphere's shadow; where the square holds the whole shadow,
 /// its solid angle from the light less the sphere's cone), and every exit of each ray of the
@@ -363,9 +373,8 @@ fn caustic_floor_power(ior: f64, half_width: f64) -> f64 {
 }
 
 /// The glass sphere's Fresnel share as a caustic on the floor (issue 20, acceptance 1): the
-/// power the floor receives inside the sphere's shadow, read from the image (a diffuse
-/// floor's radiance is albedo/pi times its irradiance, and the camera's view is a square of
-/// known size parallel to the image plane), against the closed form. `pt` is not among them:
+/// power the floor receives inside the sphere's shadow, read from the image, against the
+/// closed form. `pt` is not among them:
 /// a point light behind glass is reached by no camera path (it is seen through the sphere
 /// above).
 #[test]
@@ -380,16 +389,8 @@ fn light_tracing_bdpt_and_vcm_carry_the_fresnel_share_to_the_floor() {
         let [_, lt, bdpt, _] = deep_family(200);
         let [.., vcm] = deep_family(800);
         for (name, spec) in [lt, bdpt, vcm] {
-            let mean = render_checked(&s, &spec).image.mean_rgb(0, 0, 128, 128)[0];
-            let got = PI / CAUSTIC_ALBEDO * mean * (2.0 * half_width).powi(2);
-            eprintln!(
-                "caustic floor {ior}, {name}: {got:.5} W vs {want:.5} W ({:+.5})",
-                rel(got, want)
-            );
-            assert!(
-                rel(got, want).abs() < 0.005,
-                "{name}, index {ior}: {got:.5} W vs {want:.5} W"
-            );
+            let got = caustic_floor_seen(&render_checked(&s, &spec).image, half_width);
+            within_half_a_percent(&format!("caustic floor {ior}, {name} (W)"), got, want);
         }
     }
 }
@@ -406,15 +407,11 @@ fn vcm_s_automatic_radius_keeps_an_open_floor_at_low_resolution_within_half_a_pe
     let want = caustic_floor_power(1.5, half_width);
     let [.., (_, vcm)] = deep_family(2000);
     let out = render_checked(&s, &vcm);
-    let got =
-        PI / CAUSTIC_ALBEDO * out.image.mean_rgb(0, 0, 32, 32)[0] * (2.0 * half_width).powi(2);
+    let got = caustic_floor_seen(&out.image, half_width);
     let r0 = out.stats.ppm.as_ref().map(|p| p.radius_initial_global);
-    eprintln!(
-        "open floor at 32x32, vcm: {got:.5} W vs {want:.5} W ({:+.5}), radius {r0:?}",
-        rel(got, want)
-    );
-    assert!(
-        rel(got, want).abs() < 0.005,
-        "{got:.5} W vs {want:.5} W, radius {r0:?}"
+    within_half_a_percent(
+        &format!("open floor at 32x32, vcm, radius {r0:?} (W)"),
+        got,
+        want,
     );
 }

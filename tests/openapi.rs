@@ -84,7 +84,12 @@ fn schemathesis_finds_no_server_error_and_no_answer_outside_the_document() {
         summary["errors"]
     );
     // Every documented operation was exercised.
-    let doc = document(&s);
+    let doc: serde_json::Value = client()
+        .get(s.url("/api/openapi.json"))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
     let documented: usize = doc["paths"]
         .as_object()
         .unwrap()
@@ -94,28 +99,4 @@ fn schemathesis_finds_no_server_error_and_no_answer_outside_the_document() {
     let ops = &summary["operations"];
     assert!(documented >= 11, "{documented} operations documented");
     assert_eq!(ops["tested"], documented, "{ops}");
-}
-
-/// The busy 503 of a job submission is documented with its `Retry-After` header (the server
-/// sends it: `server::error`'s tests), so a client generated from the document can honour it.
-#[test]
-fn the_busy_503_documents_its_retry_after_header() {
-    let dir = tempfile::tempdir().unwrap();
-    let s = Server::start(&dir.path().join("data"), &[]);
-    let doc = document(&s);
-    let busy = &doc["paths"]["/api/jobs"]["post"]["responses"]["503"];
-    assert_eq!(
-        busy["headers"]["Retry-After"]["schema"]["type"], "integer",
-        "{busy}"
-    );
-}
-
-/// The server's OpenAPI document.
-fn document(s: &Server) -> serde_json::Value {
-    client()
-        .get(s.url("/api/openapi.json"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap()
 }

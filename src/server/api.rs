@@ -162,3 +162,22 @@ pub(super) async fn blocking<T: Send + 'static>(
         .await
         .map_err(|e| ApiError::internal(e.to_string()))?
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The busy 503 of a job submission is documented with its `Retry-After` header (the
+    /// server sends it: `error.rs`'s tests), so a client generated from the document can
+    /// honour it.
+    #[test]
+    fn the_busy_503_documents_its_retry_after_header() {
+        let catalog = SceneCatalog::load(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes").into());
+        let doc = serde_json::to_value(document(&catalog)).unwrap();
+        let busy = &doc["paths"]["/api/jobs"]["post"]["responses"]["503"];
+        assert_eq!(
+            busy["headers"]["Retry-After"]["schema"]["type"], "integer",
+            "{busy}"
+        );
+    }
+}

@@ -2,10 +2,11 @@
 //! median distance to the k-th nearest of them, scaled to a full iteration's density (in two
 //! dimensions a k-NN radius goes as 1/sqrt(density)). Measured twice, and the smaller kept:
 //! around the light vertices themselves (where the light lands, the brightest places
-//! weighing most), and around the first non-specular points the camera sees. The second matters where most of
-//! the light lands out of view (an open floor, the lights far out): there the light vertices
-//! are sparse, their radius large, and the merges inside the view blur what the camera sees
-//! (SmallVCM takes a fixed share of the scene's size instead; pbrt-v4's SPPM a given radius).
+//! weighing most), and around the first non-specular points the camera sees. The second
+//! matters where most of the light lands out of view (an open floor, the lights far out):
+//! there the light vertices are sparse, their radius large, and the merges inside the view
+//! blur what the camera sees (SmallVCM takes a fixed share of the scene's size instead;
+//! pbrt-v4's SPPM a given radius).
 
 use super::light_paths::trace_light_paths;
 use super::vertex::LightVertex;
@@ -46,13 +47,12 @@ impl BidirPasses<'_> {
         let tree = KdTree::build(paths.vertices);
         let step = tree.len().div_ceil(QUERIES);
         let at_light: Vec<_> = tree.items().iter().step_by(step).map(|x| x.sp.p).collect();
-        // A light vertex is its own nearest: one more neighbour.
-        let light_side = median_knn(&tree, &at_light, RADIUS_K + 1, r_max, Misses::AtMost);
+        // A light vertex is its own nearest: one more neighbour. Every point counts there,
+        // so there is a median.
+        let light_side =
+            median_knn(&tree, &at_light, RADIUS_K + 1, r_max, Misses::AtMost).unwrap_or(r_max);
         let camera_side = median_knn(&tree, &self.seen_points(), RADIUS_K, r_max, Misses::Left);
-        let r = match (light_side, camera_side) {
-            (Some(l), Some(c)) => l.min(c),
-            (l, c) => l.or(c).unwrap_or(r_max),
-        };
+        let r = camera_side.map_or(light_side, |c| light_side.min(c));
         let full = self.camera.width as f32 * self.camera.height as f32;
         let scale = (PILOT_PATHS as f32 / full).sqrt();
         Ok((r * scale).min(r_max))
