@@ -164,6 +164,13 @@ const EXIT_BAD_INPUT: u8 = 2;
 struct BadInput(String);
 
 fn main() -> ExitCode {
+    if let Err(missing) = cpu_check() {
+        eprintln!(
+            "error: this photonbox was built for x86-64-v2 (.cargo/config.toml) and this CPU \
+             lacks {missing}; rebuild with RUSTFLAGS=\"-C target-cpu=x86-64\""
+        );
+        return ExitCode::from(2);
+    }
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
@@ -333,4 +340,56 @@ fn run_worker(a: WorkerArgs) -> anyhow::Result<()> {
         },
         a.addr,
     )
+}
+
+/// The instruction sets `.cargo/config.toml` builds for, read from the CPU itself (cpuid
+/// leaf 1): `is_x86_feature_detected!` would answer from the build's own target features.
+/// Runs before anything else, so an older CPU gets a message instead of an illegal
+/// instruction somewhere in the renderer.
+#[cfg(target_arch = "x86_64")]
+fn cpu_check() -> Result<(), &'static str> {
+    #[allow(unused_unsafe)]
+    // SAFETY: cpuid exists on every x86-64 CPU.
+    let ecx = unsafe { std::arch::x86_64::__cpuid(1) }.ecx;
+    match lacking(ecx) {
+        Some(name) => Err(name),
+        None => Ok(()),
+    }
+}
+
+/// The first x86-64-v2 feature whose bit is clear in cpuid leaf 1's ecx.
+#[cfg(target_arch = "x86_64")]
+fn lacking(ecx: u32) -> Option<&'static str> {
+    let needed = [
+        (0, "SSE3"),
+        (9, "SSSE3"),
+        (13, "CMPXCHG16B"),
+        (19, "SSE4.1"),
+        (20, "SSE4.2"),
+        (23, "POPCNT"),
+    ];
+    needed
+        .iter()
+        .find(|(bit, _)| ecx & (1 << bit) == 0)
+        .map(|&(_, name)| name)
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+fn cpu_check() -> Result<(), &'static str> {
+    Ok(())
+}
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cpu_check_names_the_first_missing_feature() {
+        let all = (1 << 0) | (1 << 9) | (1 << 13) | (1 << 19) | (1 << 20) | (1 << 23);
+        assert_eq!(lacking(all), None);
+        assert_eq!(lacking(all & !(1 << 20)), Some("SSE4.2"));
+        assert_eq!(lacking(0), Some("SSE3"));
+        // This machine runs the tests, so it has them all.
+        assert_eq!(cpu_check(), Ok(()));
+    }
 }
