@@ -8,7 +8,7 @@ use glam::Vec3A;
 use super::Iteration;
 use super::effects::Shows;
 use super::light_paths::LightPaths;
-use super::vertex::{LightVertex, Mis, Walk};
+use super::vertex::{LightVertex, Mis, Roulette, Walk};
 use super::weights::Technique;
 use crate::render::film::CameraPaths;
 use crate::render::geometry::{Hit, Ray, Surface, SurfacePoint, spawn_ray_to};
@@ -36,6 +36,8 @@ struct Vertex<'v> {
     len: u32,
     /// The camera subpath's first non-specular vertex: what it shows is decided here.
     first: bool,
+    /// The probability that the camera subpath goes on from here ([`Walk::survival`]).
+    survive: f32,
 }
 
 impl CameraPaths for CameraPass<'_> {
@@ -60,6 +62,9 @@ impl CameraPaths for CameraPass<'_> {
             d_vm: 0.0,
         };
         let mut walk = Walk::start(*ray, Rgb::ONE, mis);
+        if it.modes == super::Modes::Pt {
+            walk.roulette = Roulette::Throughput;
+        }
         let mut l = Rgb::ZERO;
         while let Some(hit) = it.scene.intersect(&walk.ray) {
             let wo = -walk.ray.d;
@@ -90,6 +95,7 @@ impl CameraPaths for CameraPass<'_> {
                     mis: walk.mis,
                     len: walk.len,
                     first: walk.first_non_specular == walk.len,
+                    survive: walk.survival(m),
                 };
                 l += walk.throughput * self.at_vertex(&v, pixel as usize, s);
             }
@@ -171,7 +177,7 @@ impl CameraPass<'_> {
         if f == Rgb::ZERO {
             return Rgb::ZERO;
         }
-        let survive = v.m.continuation();
+        let survive = v.survive;
         let bsdf_pdf = if d.delta {
             0.0
         } else {
@@ -210,7 +216,7 @@ impl CameraPass<'_> {
             return Rgb::ZERO;
         }
         let (cos_camera, cos_light) = (v.sp.n.dot(d).abs(), x.sp.n.dot(d).abs());
-        let (survive_camera, survive_light) = (v.m.continuation(), xm.continuation());
+        let (survive_camera, survive_light) = (v.survive, xm.continuation());
         let w = it.weight(Technique::Connect {
             camera: &v.mis,
             light: x,
@@ -230,7 +236,7 @@ impl CameraPass<'_> {
     /// normalisation by the disc and the light path count).
     fn merge(&self, v: &Vertex, tree: &KdTree<LightVertex>) -> Rgb {
         let it = self.it;
-        let survive = v.m.continuation();
+        let survive = v.survive;
         let mut sum = Rgb::ZERO;
         tree.within(v.sp.p, self.r2, &mut |x: &LightVertex, _, _| {
             if x.len + v.len > it.max_depth + 1 {

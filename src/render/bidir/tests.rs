@@ -4,10 +4,14 @@
 
 use std::ops::ControlFlow;
 
+use super::vertex::{Mis, Roulette, Walk};
 use super::weights::Technique;
 use super::{BidirPasses, Modes};
 use crate::render::control::Control;
 use crate::render::effects::analyse;
+use crate::render::geometry::Ray;
+use crate::render::material::Material;
+use crate::render::math::Rgb;
 use crate::render::progressive::{ProgressiveRun, run_passes};
 use crate::render::scene::Scene;
 use crate::spec::{Integrator, Merging, Passes, RenderSpec, Stop};
@@ -95,4 +99,32 @@ fn the_weights_add_up_to_one_and_a_broken_one_shows() {
             );
         }
     }
+}
+
+/// `pt`'s roulette spares the first vertices, then follows the throughput; every other
+/// walk's is the material's own probability, whatever the path.
+#[test]
+fn pt_s_roulette_spares_the_first_bounces_then_follows_the_throughput() {
+    let ray = Ray::new(glam::Vec3A::ZERO, glam::Vec3A::Z);
+    let mis = Mis {
+        d_vcm: 0.0,
+        d_vc: 0.0,
+        d_vm: 0.0,
+    };
+    let grey = Material::Diffuse {
+        albedo: Rgb::new(0.5, 0.4, 0.3),
+    };
+    let black = Material::Diffuse { albedo: Rgb::ZERO };
+    let mut walk = Walk::start(ray, Rgb::new(0.2, 0.1, 0.1), mis);
+    walk.len = 1;
+    assert_eq!(walk.survival(&grey), 0.5);
+    walk.roulette = Roulette::Throughput;
+    assert_eq!(walk.survival(&grey), 1.0);
+    assert_eq!(walk.survival(&black), 0.0);
+    walk.len = Roulette::FREE - 1;
+    assert_eq!(walk.survival(&grey), 1.0);
+    walk.len = Roulette::FREE;
+    assert_eq!(walk.survival(&grey), 0.2 * 0.5);
+    walk.throughput = Rgb::new(3.0, 1.0, 1.0);
+    assert_eq!(walk.survival(&grey), 1.0);
 }
