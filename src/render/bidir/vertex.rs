@@ -119,7 +119,13 @@ impl Walk {
         let local = m.continuation();
         match self.roulette {
             Roulette::Local => local,
-            Roulette::Throughput if self.len < Roulette::FREE => (local > 0.0) as u8 as f32,
+            Roulette::Throughput if self.len < Roulette::FREE => {
+                if local > 0.0 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
             Roulette::Throughput => (max_component(self.throughput) * local).min(1.0),
         }
     }
