@@ -171,11 +171,11 @@ fn path_tracing_bdpt_and_vcm_agree_where_each_carries_every_path() {
     assert!(rel(c, a).abs() < 0.02, "vcm {c} vs pt {a}");
 }
 
-/// `auto` (issue 20, the default integrator): a room without mirror or glass gets bdpt,
-/// one with glass is rendered by vcm; the choice is exactly that integrator (the same
+/// `auto` (issue 20, the default integrator): a room without mirror or glass gets bdpt
+/// under a point light and pt under area lights only, one with glass is rendered by vcm; the choice is exactly that integrator (the same
 /// bytes) and `effects.integrator` says which and why.
 #[test]
-fn auto_connects_in_a_diffuse_room_and_merges_behind_glass() {
+fn auto_connects_in_a_point_lit_room_traces_an_area_lit_one_and_merges_behind_glass() {
     let passes = Passes {
         spp: 1,
         stop: Stop::after(2),
@@ -186,6 +186,11 @@ fn auto_connects_in_a_diffuse_room_and_merges_behind_glass() {
     };
     for (text, chosen, explicit) in [
         (CLOSED_SPHERE, "bdpt", Integrator::Bdpt(passes.clone())),
+        (
+            CLOSED_SPHERE_AREA_LIGHT,
+            "pt",
+            Integrator::Pt(passes.clone()),
+        ),
         (GLASS_BOX, "vcm", Integrator::Vcm(vcm)),
     ] {
         let s = scene(text);
@@ -203,8 +208,8 @@ fn auto_connects_in_a_diffuse_room_and_merges_behind_glass() {
 
 /// Under a short time limit alone, auto renders a scene with glass as one photon render
 /// sized to the budget (the same bytes as that photon render asked for by name); with a
-/// pass count it keeps to vcm's converging passes; a diffuse room keeps bdpt whatever the
-/// budget.
+/// pass count it keeps to vcm's converging passes; a point-lit diffuse room keeps bdpt
+/// whatever the budget.
 #[test]
 fn auto_takes_a_photon_render_for_a_short_budget_on_glass() {
     let timed = |seconds: f64| Passes {

@@ -129,7 +129,7 @@ const INTEGRATORS = {
   photon: "photon (photon maps)", raytrace: "raytrace (direct light only)",
   ppm: "ppm (progressive photon mapping)", pt: "pt (path tracing)", lt: "lt (light tracing)",
   bdpt: "bdpt (bidirectional path tracing)", vcm: "vcm (vertex connection and merging)",
-  auto: "auto (the scene's choice: bdpt, vcm, or photon for a short time limit)",
+  auto: "auto (the scene's choice: pt, bdpt, vcm, or photon for a short time limit)",
 };
 
 /// The integrator choice: every integrator the server's spec has, its default first.

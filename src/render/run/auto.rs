@@ -10,13 +10,19 @@
 //! - mirror or glass otherwise: caustics (light, specular, diffuse), which from a point
 //!   light only the light side reaches, and which seen through glass only merging carries:
 //!   `vcm`, which converges;
-//! - no mirror or glass: no caustic to merge; connections between subpaths carry the
-//!   indirect light better than path tracing's next-event estimation alone: `bdpt`, the
-//!   fastest of ours to Mitsuba's block_err on every diffuse scene of the race.
+//! - no mirror or glass and a point light: no caustic to merge; connections between
+//!   subpaths carry the indirect light of the light's bright spots better than path
+//!   tracing's next-event estimation alone: `bdpt` (on cornell_spheres at 4 s, 40% less
+//!   relmse than `pt`);
+//! - no mirror or glass and area lights only: `pt`, whose camera paths also hit the lights
+//!   and whose roulette spares the first bounces: against `bdpt` at 1, 4 and 16 s, 3%,
+//!   16% and 15% less relmse on cornell, +1-2%, level and 7% less on knot, block_err level
+//!   or lower (docs/performance-history.md, "auto on area-lit rooms").
 //!
 //! The choice is a function of the scene and the spec alone (never of the machine or the
 //! clock), so the same job renders the same bytes from the CLI and the server.
 
+use crate::render::light::Light;
 use crate::render::scene::Scene;
 use crate::render::stats::Effect;
 use crate::spec::{Integrator, Merging, Passes, PhotonMapping};
@@ -107,10 +113,23 @@ pub(super) fn choose(scene: &Scene, passes: &Passes, pixels: u64) -> (Integrator
                     .to_string(),
             )
         }
+        _ if scene
+            .lights
+            .iter()
+            .any(|l| matches!(l, Light::Point { .. })) =>
+        {
+            (
+                Integrator::Bdpt(passes.clone()),
+                "no mirror or glass, and a point light: no caustic to merge; connections between \
+             light and camera subpaths carry the indirect light of its bright spots"
+                    .to_string(),
+            )
+        }
         _ => (
-            Integrator::Bdpt(passes.clone()),
-            "no mirror or glass: no caustic to merge; connections between light and camera \
-             subpaths carry the indirect light"
+            Integrator::Pt(passes.clone()),
+            "no mirror or glass, and area lights only: no caustic to merge, and camera paths \
+             reach the lights themselves: path tracing, next-event estimation weighed \
+             against hitting the lights"
                 .to_string(),
         ),
     };
