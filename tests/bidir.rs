@@ -172,8 +172,9 @@ fn path_tracing_bdpt_and_vcm_agree_where_each_carries_every_path() {
 }
 
 /// `auto` (issue 20, the default integrator): a room without mirror or glass gets bdpt
-/// under a point light and pt under area lights only, one with glass is rendered by vcm; the choice is exactly that integrator (the same
-/// bytes) and `effects.integrator` says which and why.
+/// under a point light and pt under area lights only, one with glass is rendered by vcm;
+/// the choice is exactly that integrator (the same bytes) and `effects.integrator` says
+/// which and why.
 #[test]
 fn auto_connects_in_a_point_lit_room_traces_an_area_lit_one_and_merges_behind_glass() {
     let passes = Passes {
