@@ -342,36 +342,35 @@ fn run_worker(a: WorkerArgs) -> anyhow::Result<()> {
     )
 }
 
-/// The instruction sets `.cargo/config.toml` builds for, read from the CPU itself (cpuid
-/// leaf 1): `is_x86_feature_detected!` would answer from the build's own target features.
-/// Runs before anything else, so an older CPU gets a message instead of an illegal
-/// instruction somewhere in the renderer.
+/// The instruction sets this build was compiled for (x86-64-v2 by `.cargo/config.toml`),
+/// read from the CPU itself (cpuid leaf 1): `is_x86_feature_detected!` would answer from
+/// the build's own target features. Runs before anything else, so an older CPU gets a
+/// message instead of an illegal instruction somewhere in the renderer; a build for the
+/// baseline (`RUSTFLAGS="-C target-cpu=x86-64"`) asks for none of them.
 #[cfg(target_arch = "x86_64")]
 fn cpu_check() -> Result<(), &'static str> {
+    let compiled_for = [
+        (0, "SSE3", cfg!(target_feature = "sse3")),
+        (9, "SSSE3", cfg!(target_feature = "ssse3")),
+        (13, "CMPXCHG16B", cfg!(target_feature = "cmpxchg16b")),
+        (19, "SSE4.1", cfg!(target_feature = "sse4.1")),
+        (20, "SSE4.2", cfg!(target_feature = "sse4.2")),
+        (23, "POPCNT", cfg!(target_feature = "popcnt")),
+    ];
     #[allow(unused_unsafe)]
     // SAFETY: cpuid exists on every x86-64 CPU.
     let ecx = unsafe { std::arch::x86_64::__cpuid(1) }.ecx;
-    match lacking(ecx) {
-        Some(name) => Err(name),
-        None => Ok(()),
-    }
+    lacking(ecx, &compiled_for).map_or(Ok(()), Err)
 }
 
-/// The first x86-64-v2 feature whose bit is clear in cpuid leaf 1's ecx.
+/// The first feature (cpuid leaf 1 ecx bit, name, whether the build uses it) that the
+/// build uses and whose bit is clear.
 #[cfg(target_arch = "x86_64")]
-fn lacking(ecx: u32) -> Option<&'static str> {
-    let needed = [
-        (0, "SSE3"),
-        (9, "SSSE3"),
-        (13, "CMPXCHG16B"),
-        (19, "SSE4.1"),
-        (20, "SSE4.2"),
-        (23, "POPCNT"),
-    ];
-    needed
+fn lacking(ecx: u32, features: &[(u32, &'static str, bool)]) -> Option<&'static str> {
+    features
         .iter()
-        .find(|(bit, _)| ecx & (1 << bit) == 0)
-        .map(|&(_, name)| name)
+        .find(|&&(bit, _, used)| used && ecx & (1 << bit) == 0)
+        .map(|f| f.1)
 }
 
 #[cfg(not(target_arch = "x86_64"))]
@@ -385,11 +384,14 @@ mod tests {
 
     #[test]
     fn the_cpu_check_names_the_first_missing_feature() {
-        let all = (1 << 0) | (1 << 9) | (1 << 13) | (1 << 19) | (1 << 20) | (1 << 23);
-        assert_eq!(lacking(all), None);
-        assert_eq!(lacking(all & !(1 << 20)), Some("SSE4.2"));
-        assert_eq!(lacking(0), Some("SSE3"));
-        // This machine runs the tests, so it has them all.
+        let v2 = [(0, "SSE3", true), (9, "SSSE3", true), (20, "SSE4.2", true)];
+        let all = (1 << 0) | (1 << 9) | (1 << 20);
+        assert_eq!(lacking(all, &v2), None);
+        assert_eq!(lacking(all & !(1 << 20), &v2), Some("SSE4.2"));
+        assert_eq!(lacking(0, &v2), Some("SSE3"));
+        // A baseline build uses none of them, and wants nothing of the CPU.
+        assert_eq!(lacking(0, &v2.map(|(b, n, _)| (b, n, false))), None);
+        // This machine has what this build uses (x86-64-v2, by .cargo/config.toml).
         assert_eq!(cpu_check(), Ok(()));
     }
 }

@@ -81,6 +81,7 @@ impl CameraPaths for CameraPass<'_> {
                 break;
             }
             let m = &it.scene.materials[mi as usize];
+            let survive = walk.survival(m);
             if !m.is_specular() {
                 if it.modes == super::Modes::Lt {
                     break; // the light subpaths carry what a diffuse point shows
@@ -95,11 +96,12 @@ impl CameraPaths for CameraPass<'_> {
                     mis: walk.mis,
                     len: walk.len,
                     first: walk.first_non_specular == walk.len,
-                    survive: walk.survival(m),
+                    survive,
                 };
                 l += walk.throughput * self.at_vertex(&v, pixel as usize, s);
             }
-            if !walk.scatter_at(m, &hit.point, wo, (s, Transport::Radiance), &it.factors) {
+            let scatter = (&mut *s, Transport::Radiance);
+            if !walk.scatter_at((m, survive), &hit.point, wo, scatter, &it.factors) {
                 break;
             }
         }

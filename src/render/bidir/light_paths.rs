@@ -196,7 +196,8 @@ fn step(
     if walk.len >= it.max_depth {
         return false;
     }
-    walk.scatter_at(m, &hit.point, wo, (s, Transport::Importance), &it.factors)
+    let (survive, scatter) = (walk.survival(m), (s, Transport::Importance));
+    walk.scatter_at((m, survive), &hit.point, wo, scatter, &it.factors)
 }
 
 /// Light tracing: light vertex `v` seen by the camera, splatted onto the pixel it projects

@@ -173,10 +173,11 @@ impl Walk {
 
 impl Walk {
     /// Sample a scattering at `hit` (where the path arrived from direction `wo`), survive
-    /// Russian roulette, and go on: false when the path ends.
+    /// Russian roulette with probability `survive` (the caller's [`Walk::survival`], the
+    /// one its techniques at this vertex weighed), and go on: false when the path ends.
     pub fn scatter_at(
         &mut self,
-        m: &Material,
+        (m, survive): (&Material, f32),
         hit: &SurfacePoint,
         wo: Vec3A,
         (s, mode): (&mut Sampler, Transport),
@@ -186,7 +187,6 @@ impl Walk {
         let Some(b) = m.sample(wo, n, s.next_f32(), s.next_2d(), mode) else {
             return false;
         };
-        let survive = self.survival(m);
         if !(survive > 0.0) || s.next_f32() >= survive {
             return false;
         }
