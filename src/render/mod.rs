@@ -24,6 +24,7 @@ pub mod qmc;
 mod run;
 pub mod sampling;
 pub mod scene;
+pub(crate) mod stack;
 pub mod stats;
 
 pub use control::{Cancelled, Control, Phase, Progress};

@@ -6,16 +6,21 @@
 
 use std::time::Duration;
 
+use glam::{UVec2, Vec3A, Vec4};
+
 use obvhs::{
     Boundable, BvhBuildParams,
     aabb::Aabb,
     cwbvh::{CwBvh, builder::build_cwbvh, bvh2_to_cwbvh::bvh2_to_cwbvh},
-    ray::{Ray as BvhRay, RayHit},
+    ray::Ray as BvhRay,
+    traverse,
 };
 
 use super::degenerate;
 use super::flat::Flat;
-use super::{Hit, PrimId, Primitive, Ray, shapes::ShapeHit};
+use super::triangle::intersect_triangle;
+use super::{Hit, PrimId, Primitive, Ray, Shape, shapes::ShapeHit};
+use crate::render::stack::Stack;
 
 impl Boundable for Primitive {
     fn aabb(&self) -> Aabb {
@@ -41,6 +46,8 @@ pub struct Accel {
     bvh: Option<CwBvh>,
     flat: Option<Flat>,
     prims: Vec<Primitive>,
+    /// What the BVH's leaf tests read, in leaf order ([`Corners`]); empty without a BVH.
+    leaves: Vec<Corners>,
     /// Built top-down because PLOC would have stalled (see [`build_bvh`]).
     top_down: bool,
 }
@@ -71,6 +78,7 @@ impl Accel {
                 bvh: None,
                 flat: Some(Flat::new(&shapes)),
                 prims,
+                leaves: Vec::new(),
                 top_down: false,
             };
         }
@@ -80,6 +88,7 @@ impl Accel {
             .iter()
             .map(|&i| prims[i as usize])
             .collect();
+        drop(prims); // before the leaves are made: the peak stays what it was
         // The leaves now index `ordered` directly.
         for (i, idx) in bvh.primitive_indices.iter_mut().enumerate() {
             *idx = i as u32;
@@ -87,6 +96,7 @@ impl Accel {
         Accel {
             bvh: Some(bvh),
             flat: None,
+            leaves: ordered.iter().map(Corners::of).collect(),
             prims: ordered,
             top_down,
         }
@@ -113,24 +123,25 @@ impl Accel {
             let (prim, hit) = self.flat.as_ref()?.intersect(ray)?;
             return Some(PrimHit { prim, hit });
         };
-        let bray = BvhRay::new(ray.o, ray.d, 0.0, ray.t_max);
+        let mut bray = BvhRay::new(ray.o, ray.d, 0.0, ray.t_max);
         let mut best: Option<PrimHit> = None;
-        let mut rh = RayHit::none();
-        bvh.ray_traverse(bray, &mut rh, |r, id| {
-            let prim = &self.prims[id];
-            let mut probe = *ray;
-            probe.t_max = r.tmax;
-            match prim.shape.intersect(&probe, id as u32) {
-                Some(hit) => {
-                    best = Some(PrimHit {
-                        prim: id as u32,
-                        hit,
-                    });
-                    hit.t
+        let mut state = Traversal::new(bvh, ray.d);
+        let mut node;
+        traverse!(
+            bvh,
+            node,
+            state,
+            node.intersect_ray(&bray, state.oct_inv4),
+            {
+                let id = state.primitive_id;
+                let mut probe = *ray;
+                probe.t_max = bray.tmax;
+                if let Some(hit) = self.leaf_hit(id, &probe) {
+                    best = Some(PrimHit { prim: id, hit });
+                    bray.tmax = bray.tmax.min(hit.t);
                 }
-                None => f32::INFINITY,
             }
-        });
+        );
         best
     }
 
@@ -155,17 +166,97 @@ impl Accel {
             .map(|h| h.map(|(prim, hit)| PrimHit { prim, hit }))
     }
 
+    /// [`Shape::intersect`] for the primitive of BVH leaf slot `id`, a triangle's from its
+    /// packed corners.
+    #[inline(always)]
+    fn leaf_hit(&self, id: PrimId, ray: &Ray) -> Option<ShapeHit> {
+        let [p0, p1, p2] = self.leaves[id as usize].0;
+        if p0.w == 0.0 {
+            return self.prims[id as usize].shape.intersect(ray, id);
+        }
+        // Shape::intersect's own tests for a triangle, in its order.
+        if ray.target_prim == id || ray.origin_prim == id {
+            return None;
+        }
+        let corner = Vec3A::from_vec4;
+        intersect_triangle(corner(p0), corner(p1), corner(p2), ray)
+    }
+
     /// Whether anything blocks the ray before `ray.t_max` (shadow rays).
     pub fn occluded(&self, ray: &Ray) -> bool {
         let Some(bvh) = self.bvh.as_ref() else {
             return self.flat.as_ref().is_some_and(|f| f.occluded(ray));
         };
         let bray = BvhRay::new(ray.o, ray.d, 0.0, ray.t_max);
-        !bvh.ray_traverse_miss(bray, |_, id| {
-            match self.prims[id].shape.intersect(ray, id as u32) {
-                Some(h) => h.t,
-                None => f32::INFINITY,
-            }
-        })
+        let mut state = Traversal::new(bvh, ray.d);
+        let mut node;
+        let mut blocked = false;
+        'traversal: {
+            traverse!(
+                bvh,
+                node,
+                state,
+                node.intersect_ray(&bray, state.oct_inv4),
+                {
+                    let id = state.primitive_id;
+                    let hit = self.leaf_hit(id, ray);
+                    if hit.is_some_and(|h| h.t < bray.tmax) {
+                        blocked = true;
+                        break 'traversal;
+                    }
+                }
+            );
+        }
+        blocked
+    }
+}
+
+/// obvhs's traversal state (the fields its `traverse!` reads) over our unzeroed stack: its
+/// own `ray_traverse` zeroes a 256-byte stack for every ray (docs/performance-history.md,
+/// "unzeroed BVH stack"). Same nodes, same order, so the same hits.
+struct Traversal {
+    stack: Stack<UVec2, 32>,
+    current_group: UVec2,
+    primitive_group: UVec2,
+    oct_inv4: u32,
+    primitive_id: u32,
+    hitmask: u32,
+}
+
+impl Traversal {
+    #[inline]
+    fn new(bvh: &CwBvh, dir: Vec3A) -> Traversal {
+        let empty = bvh.nodes.is_empty();
+        Traversal {
+            stack: Stack::new(),
+            current_group: if empty {
+                UVec2::ZERO
+            } else {
+                UVec2::new(0, 0x8000_0000)
+            },
+            primitive_group: UVec2::ZERO,
+            // The ray's octant, inverted, in every byte (obvhs's `ray_get_octant_inv4`).
+            oct_inv4: (if dir.x < 0.0 { 0 } else { 0x0404_0404 })
+                | (if dir.y < 0.0 { 0 } else { 0x0202_0202 })
+                | (if dir.z < 0.0 { 0 } else { 0x0101_0101 }),
+            primitive_id: 0,
+            hitmask: 0,
+        }
+    }
+}
+
+/// A BVH leaf's primitive as the traversal reads it: a triangle's three corners, 48 bytes
+/// against a [`Primitive`]'s 128, so that a mesh's leaves take fewer cache lines (the load
+/// of the shape was the hottest instruction of a knot render); w = 1 marks a triangle,
+/// w = 0 any other shape, read from the primitive itself.
+#[derive(Clone, Copy)]
+struct Corners([Vec4; 3]);
+
+impl Corners {
+    fn of(p: &Primitive) -> Corners {
+        match p.shape {
+            Shape::Triangle { p0, p1, p2 } => Corners([p0, p1, p2].map(|c| c.extend(1.0))),
+            _ => Corners([Vec4::ZERO; 3]),
+        }
     }
 }

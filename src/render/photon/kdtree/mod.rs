@@ -20,8 +20,6 @@
 //! Chosen over kiddo after measuring both on photon maps (benches/kdtree.rs, recorded in
 //! docs/performance.md).
 
-use std::mem::MaybeUninit;
-
 use glam::Vec3A;
 
 pub(super) use lanes::{distances4, within4};
@@ -207,37 +205,5 @@ impl<T: KdItem> KdTree<T> {
 /// Deeper than any tree of up to 2^32 items with LEAF-sized leaves.
 const MAX_DEPTH: usize = 64;
 
-/// A fixed-capacity stack for traversals that is not zeroed on creation: zeroing a 1 KiB
-/// array per query showed up in a render's profile as memset (measured:
-/// docs/performance-history.md, "unzeroed traversal stack").
-struct Stack<T: Copy> {
-    items: [MaybeUninit<T>; MAX_DEPTH],
-    len: usize,
-}
-
-impl<T: Copy> Stack<T> {
-    #[inline]
-    fn new() -> Self {
-        Stack {
-            items: [const { MaybeUninit::uninit() }; MAX_DEPTH],
-            len: 0,
-        }
-    }
-
-    #[inline]
-    fn push(&mut self, v: T) {
-        // Indexing panics rather than overflow (impossible for a balanced tree).
-        self.items[self.len] = MaybeUninit::new(v);
-        self.len += 1;
-    }
-
-    #[inline]
-    fn pop(&mut self) -> Option<T> {
-        if self.len == 0 {
-            return None;
-        }
-        self.len -= 1;
-        // SAFETY: every slot below `len` was written by `push`.
-        Some(unsafe { self.items[self.len].assume_init() })
-    }
-}
+/// The traversal stack, deep enough for any tree of up to 2^32 items.
+type Stack<T> = crate::render::stack::Stack<T, MAX_DEPTH>;
