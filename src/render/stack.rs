@@ -20,7 +20,9 @@ impl<T: Copy, const N: usize> Stack<T, N> {
     }
 
     /// Pushes `v`; on a full stack the value is dropped instead, as obvhs's own traversal
-    /// stack does (a tree deeper than the capacity is out of reach of both trees' builds).
+    /// stack does, so the BVH's hits are the ones obvhs would find. The kd-tree is balanced
+    /// and never comes near its capacity; a BVH deeper than 32 levels would lose nodes with
+    /// either stack (obvhs's validation asks for less).
     #[inline]
     pub fn push(&mut self, v: T) {
         self.items[self.len] = MaybeUninit::new(v);

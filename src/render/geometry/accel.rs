@@ -4,6 +4,7 @@
 //! obvhs is built single-threaded (its `parallel` feature is off) so that the tree, and with
 //! it the order in which equal-distance hits are found, never depends on the thread count.
 
+use std::ops::ControlFlow;
 use std::time::Duration;
 
 use glam::{UVec2, Vec3A, Vec4};
@@ -123,25 +124,16 @@ impl Accel {
             let (prim, hit) = self.flat.as_ref()?.intersect(ray)?;
             return Some(PrimHit { prim, hit });
         };
-        let mut bray = BvhRay::new(ray.o, ray.d, 0.0, ray.t_max);
         let mut best: Option<PrimHit> = None;
-        let mut state = Traversal::new(bvh, ray.d);
-        let mut node;
-        traverse!(
-            bvh,
-            node,
-            state,
-            node.intersect_ray(&bray, state.oct_inv4),
-            {
-                let id = state.primitive_id;
-                let mut probe = *ray;
-                probe.t_max = bray.tmax;
-                if let Some(hit) = self.leaf_hit(id, &probe) {
-                    best = Some(PrimHit { prim: id, hit });
-                    bray.tmax = bray.tmax.min(hit.t);
-                }
+        self.walk(bvh, ray, |bray, id| {
+            let mut probe = *ray;
+            probe.t_max = bray.tmax;
+            if let Some(hit) = self.leaf_hit(id, &probe) {
+                best = Some(PrimHit { prim: id, hit });
+                bray.tmax = bray.tmax.min(hit.t);
             }
-        );
+            ControlFlow::Continue(())
+        });
         best
     }
 
@@ -166,6 +158,34 @@ impl Accel {
             .map(|h| h.map(|(prim, hit)| PrimHit { prim, hit }))
     }
 
+    /// Walks the BVH along `ray` with obvhs's `traverse!` (its node order), handing `leaf`
+    /// each primitive in a box the ray meets within `tmax`; `leaf` may shorten `tmax` (the
+    /// closest hit) or end the walk (any hit).
+    #[inline(always)]
+    fn walk(
+        &self,
+        bvh: &CwBvh,
+        ray: &Ray,
+        mut leaf: impl FnMut(&mut BvhRay, PrimId) -> ControlFlow<()>,
+    ) {
+        let mut bray = BvhRay::new(ray.o, ray.d, 0.0, ray.t_max);
+        let mut state = Traversal::new(bvh, ray.d);
+        let mut node;
+        'walk: {
+            traverse!(
+                bvh,
+                node,
+                state,
+                node.intersect_ray(&bray, state.oct_inv4),
+                {
+                    if leaf(&mut bray, state.primitive_id).is_break() {
+                        break 'walk;
+                    }
+                }
+            );
+        }
+    }
+
     /// [`Shape::intersect`] for the primitive of BVH leaf slot `id`, a triangle's from its
     /// packed corners.
     #[inline(always)]
@@ -187,26 +207,14 @@ impl Accel {
         let Some(bvh) = self.bvh.as_ref() else {
             return self.flat.as_ref().is_some_and(|f| f.occluded(ray));
         };
-        let bray = BvhRay::new(ray.o, ray.d, 0.0, ray.t_max);
-        let mut state = Traversal::new(bvh, ray.d);
-        let mut node;
         let mut blocked = false;
-        'traversal: {
-            traverse!(
-                bvh,
-                node,
-                state,
-                node.intersect_ray(&bray, state.oct_inv4),
-                {
-                    let id = state.primitive_id;
-                    let hit = self.leaf_hit(id, ray);
-                    if hit.is_some_and(|h| h.t < bray.tmax) {
-                        blocked = true;
-                        break 'traversal;
-                    }
-                }
-            );
-        }
+        self.walk(bvh, ray, |bray, id| {
+            if self.leaf_hit(id, ray).is_some_and(|h| h.t < bray.tmax) {
+                blocked = true;
+                return ControlFlow::Break(());
+            }
+            ControlFlow::Continue(())
+        });
         blocked
     }
 }
@@ -246,9 +254,9 @@ impl Traversal {
 }
 
 /// A BVH leaf's primitive as the traversal reads it: a triangle's three corners, 48 bytes
-/// against a [`Primitive`]'s 128, so that a mesh's leaves take fewer cache lines (the load
-/// of the shape was the hottest instruction of a knot render); w = 1 marks a triangle,
-/// w = 0 any other shape, read from the primitive itself.
+/// against a [`Primitive`]'s 128, so that a mesh's leaves take fewer cache lines (reading
+/// the primitive was the hottest instruction of `Accel::closest` in a knot render); w = 1
+/// marks a triangle, w = 0 any other shape, read from the primitive itself.
 #[derive(Clone, Copy)]
 struct Corners([Vec4; 3]);
 
