@@ -66,6 +66,12 @@ impl Light {
         }
     }
 
+    /// A light at a single point (a delta in position): only connections and light
+    /// tracing reach it, never a camera path.
+    pub fn is_delta(&self) -> bool {
+        matches!(self, Light::Point { .. })
+    }
+
     pub fn prim(&self) -> PrimId {
         match *self {
             Light::Point { .. } => NO_PRIM,

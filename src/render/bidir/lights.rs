@@ -147,7 +147,7 @@ impl Light {
             direct_pdf,
             emission_pdf: self.emission_pdf(n, -ls.wi),
             cos_light,
-            delta: matches!(self, Light::Point { .. }),
+            delta: self.is_delta(),
         })
     }
 }

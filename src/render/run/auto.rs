@@ -113,18 +113,12 @@ pub(super) fn choose(scene: &Scene, passes: &Passes, pixels: u64) -> (Integrator
                     .to_string(),
             )
         }
-        _ if scene
-            .lights
-            .iter()
-            .any(|l| matches!(l, Light::Point { .. })) =>
-        {
-            (
-                Integrator::Bdpt(passes.clone()),
-                "no mirror or glass, and a point light: no caustic to merge; connections between \
+        _ if scene.lights.iter().any(Light::is_delta) => (
+            Integrator::Bdpt(passes.clone()),
+            "no mirror or glass, and a point light: no caustic to merge; connections between \
              light and camera subpaths carry the indirect light of its bright spots"
-                    .to_string(),
-            )
-        }
+                .to_string(),
+        ),
         _ => (
             Integrator::Pt(passes.clone()),
             "no mirror or glass, and area lights only: no caustic to merge, and camera paths \
