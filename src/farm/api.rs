@@ -111,23 +111,41 @@ pub(super) fn snapshot(job: &FarmJob, now: f64) -> Snapshot {
     let FarmJob { row, tasks, .. } = job;
     let done = row.status == Status::Done;
     let running = row.status == Status::Running;
+    let mut progress = if done { 1.0 } else { tasks.progress() };
     let eta_seconds = match (running, row.started) {
         (true, Some(started)) if tasks.done > 0 && tasks.total > tasks.done => {
             let per_task = (now - started).max(0.0) / tasks.done as f64;
             Some(per_task * (tasks.total - tasks.done) as f64)
         }
+        // A job that renders until its time is spent is one task, done only at its end:
+        // its clock is its progress (as one box counts such a job's passes by their time).
+        (true, Some(started)) if tasks.done == 0 => until_time(&row.params_json).map(|limit| {
+            let spent = (now - started).max(0.0);
+            progress = (spent / limit).min(0.99);
+            (limit - spent).max(0.0)
+        }),
         // As one box says of a finished job.
         _ if done => Some(0.0),
         _ => None,
     };
     Snapshot {
         status: row.status,
-        progress: if done { 1.0 } else { tasks.progress() },
+        progress,
         phase: running.then_some("passes"),
         eta_seconds,
         previews: tasks.done.max(done as u32) as u64,
         error: row.error.clone(),
     }
+}
+
+/// The time limit of a stored spec whose passes run until it is spent (None for any other
+/// job, and for a spec that no longer parses).
+fn until_time(params_json: &str) -> Option<f64> {
+    let spec = JobSpec::from_stored(params_json).ok()?;
+    let stop = spec.render.stop()?;
+    stop.until_time()
+        .then_some(stop.time_limit?)
+        .filter(|t| *t > 0.0)
 }
 
 /// A job id from the path: anything else names no job (404, as on one box).
@@ -392,5 +410,20 @@ mod tests {
             (s.progress, s.eta_seconds, s.previews),
             (1.0, Some(0.0), 10)
         );
+    }
+
+    /// A job that renders until its time limit is one task: its progress and time left go
+    /// by its clock, short of done until the task is; a job of counted passes does not.
+    #[test]
+    fn an_until_time_job_s_progress_follows_its_clock() {
+        let mut j = job(Status::Running, Some(100.0), 0, 1);
+        j.row.params_json = r#"{"integrator": "pt", "time_limit": 40}"#.into();
+        let s = snapshot(&j, 110.0);
+        assert_eq!((s.progress, s.eta_seconds), (0.25, Some(30.0)));
+        let s = snapshot(&j, 190.0);
+        assert_eq!((s.progress, s.eta_seconds), (0.99, Some(0.0)));
+        j.row.params_json = r#"{"integrator": "pt", "iterations": 8, "time_limit": 40}"#.into();
+        let s = snapshot(&j, 110.0);
+        assert_eq!((s.progress, s.eta_seconds), (0.0, None));
     }
 }

@@ -5,6 +5,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use tokio::sync::watch;
 use tokio::time::Instant;
 
 use super::FarmError;
@@ -27,14 +28,30 @@ pub(super) struct Prepared {
     pub(super) reference: Option<Image>,
 }
 
+/// Why a worker could not make a task's job ready.
+#[derive(Debug, PartialEq)]
+pub(super) enum Unready {
+    /// The task fails (and counts against the job's attempts).
+    Failed(String),
+    /// The worker is shutting down: it gives the task back, which is not a failure.
+    ShuttingDown,
+}
+
+impl From<String> for Unready {
+    fn from(why: String) -> Unready {
+        Unready::Failed(why)
+    }
+}
+
 /// `read` until it succeeds, fails for good, or `patience.0` has passed since the first
 /// try (then its last error), trying again every `patience.1` while the store is out of
-/// reach (`FarmError::is_transient`).
+/// reach (`FarmError::is_transient`); a shutdown ends the waiting at once.
 pub(super) async fn patiently<T, F, Fut>(
     patience: (Duration, Duration),
     what: &str,
+    shutdown: &mut watch::Receiver<bool>,
     mut read: F,
-) -> Result<T, String>
+) -> Result<T, Unready>
 where
     F: FnMut() -> Fut,
     Fut: Future<Output = Result<T, FarmError>>,
@@ -45,9 +62,15 @@ where
             Ok(v) => return Ok(v),
             Err(e) if e.is_transient() && Instant::now() < give_up => {
                 tracing::warn!("{what} (trying again): {e}");
-                tokio::time::sleep(patience.1).await;
+                if *shutdown.borrow() {
+                    return Err(Unready::ShuttingDown);
+                }
+                tokio::select! {
+                    _ = tokio::time::sleep(patience.1) => {}
+                    _ = shutdown.changed() => return Err(Unready::ShuttingDown),
+                }
             }
-            Err(e) => return Err(format!("{what}: {e}")),
+            Err(e) => return Err(Unready::Failed(format!("{what}: {e}"))),
         }
     }
 }
@@ -56,10 +79,10 @@ where
 pub(super) fn prepare(
     job_id: i64,
     source: &JobSource,
+    spec: JobSpec,
     catalog: &SceneCatalog,
     pool: &rayon::ThreadPool,
 ) -> Result<Prepared, String> {
-    let spec = JobSpec::from_stored(&source.params_json)?;
     let resolved = match (&source.scene_json, &source.scene_name) {
         (Some(text), _) => {
             let value = serde_json::from_str(text).map_err(|e| format!("the job's scene: {e}"))?;
@@ -103,21 +126,47 @@ mod tests {
     async fn a_blip_is_waited_out_and_a_lasting_failure_is_the_task_s() {
         let calls = std::cell::Cell::new(0);
         let pause = Duration::from_millis(1);
-        let got = patiently((Duration::from_secs(60), pause), "r", || read(&calls, 2)).await;
+        let (_tx, mut shutdown) = watch::channel(false);
+        let long = (Duration::from_secs(60), pause);
+        let got = patiently(long, "r", &mut shutdown, || read(&calls, 2)).await;
         assert_eq!(got, Ok(3));
         calls.set(0);
-        let got = patiently((Duration::ZERO, pause), "r", || read(&calls, 5)).await;
-        assert_eq!((got.is_err(), calls.get()), (true, 1));
-        calls.set(0);
-        let gone = patiently(
-            (Duration::from_secs(60), pause),
-            "reading the job",
-            || async {
-                calls.set(calls.get() + 1);
-                Err::<u32, _>(FarmError::NoSuchJob(3))
-            },
-        );
-        assert_eq!(gone.await, Err("reading the job: no job 3".into()));
+        let got = patiently((Duration::ZERO, pause), "r", &mut shutdown, || {
+            read(&calls, 5)
+        });
+        assert!(matches!(got.await, Err(Unready::Failed(_))));
         assert_eq!(calls.get(), 1);
+        calls.set(0);
+        let gone = patiently(long, "reading the job", &mut shutdown, || async {
+            calls.set(calls.get() + 1);
+            Err::<u32, _>(FarmError::NoSuchJob(3))
+        });
+        let why = "reading the job: no job 3".to_string();
+        assert_eq!(gone.await, Err(Unready::Failed(why)));
+        assert_eq!(calls.get(), 1);
+    }
+
+    /// A worker told to shut down while the store is away stops waiting at once and says
+    /// so, rather than failing the task (which would count against the job's attempts).
+    #[tokio::test(start_paused = true)]
+    async fn a_shutdown_ends_the_waiting_without_failing_the_task() {
+        let calls = std::cell::Cell::new(0);
+        let (tx, mut shutdown) = watch::channel(false);
+        let patience = (Duration::from_secs(3600), Duration::from_secs(1));
+        let waiting = patiently(patience, "r", &mut shutdown, || read(&calls, u32::MAX));
+        let stop = async {
+            tokio::time::sleep(Duration::from_millis(4500)).await;
+            tx.send_replace(true);
+            std::future::pending::<()>().await
+        };
+        let got = tokio::select! {
+            got = waiting => got,
+            _ = stop => unreachable!(),
+        };
+        assert_eq!(got, Err(Unready::ShuttingDown));
+        assert_eq!(calls.get(), 5);
+        let mut stopped = tx.subscribe();
+        let got = patiently(patience, "r", &mut stopped, || read(&calls, u32::MAX)).await;
+        assert_eq!(got, Err(Unready::ShuttingDown));
     }
 }

@@ -15,12 +15,13 @@ use anyhow::Context;
 use tokio::sync::watch;
 
 use super::outcome::{job_stats, merge};
-use super::prepared::{Prepared, patiently, prepare};
+use super::prepared::{Prepared, Unready, patiently, prepare};
 use super::queue::CANCEL_CHANNEL;
 use super::records::JobImages;
 use super::task::{UnitResult, render_unit};
 use super::{Completion, FarmError, Lease, Queue};
 use crate::render::{Image, RenderError, output};
+use crate::server::jobs::JobSpec;
 use crate::server::scenes::SceneCatalog;
 
 /// How long a worker sleeps between claims when no NOTIFY wakes it (a notification lost
@@ -146,10 +147,14 @@ impl Task<'_> {
     ) -> Option<Arc<Prepared>> {
         let job = match prepared.filter(|p| p.job_id == lease.job_id) {
             Some(p) => p,
-            None => match self.prepare(lease.job_id).await {
+            None => match self.prepare(lease.job_id, shutdown).await {
                 Ok(p) => Arc::new(p),
-                Err(e) => {
+                Err(Unready::Failed(e)) => {
                     self.report_failure(&lease, &e).await;
+                    return None;
+                }
+                Err(Unready::ShuttingDown) => {
+                    self.give_back(&lease).await;
                     return None;
                 }
             },
@@ -202,12 +207,8 @@ impl Task<'_> {
             }
         };
         match result {
-            Ok(Ok(result)) => self.hand_in(&lease, &job, &result).await,
-            Ok(Err(RenderError::Cancelled(_))) if releasing => {
-                if let Err(e) = self.queue.release(&lease).await {
-                    tracing::warn!("giving the task back: {e}");
-                }
-            }
+            Ok(Ok(result)) => self.hand_in(&lease, &job, &result, shutdown).await,
+            Ok(Err(RenderError::Cancelled(_))) if releasing => self.give_back(&lease).await,
             Ok(Err(RenderError::Cancelled(_))) => {}
             Ok(Err(e)) => self.report_failure(&lease, &e.to_string()).await,
             Err(panic) => {
@@ -218,38 +219,60 @@ impl Task<'_> {
         Some(job)
     }
 
-    /// Read the job's spec and scene and build the scene (its BVH) on the worker's pool.
-    /// A store out of reach is tried again for half a lease (the lease holds meanwhile)
-    /// before the task counts a failure: a blip costs nothing, a store that keeps failing
-    /// the read fails the job after its attempts, as any other failure.
-    async fn prepare(&self, job_id: i64) -> Result<Prepared, String> {
+    /// Read the job's spec, its reference's image (if it has one: a reference deleted since
+    /// fails the task before the scene is built for nothing) and its scene, and build the
+    /// scene (its BVH) on the worker's pool. A store out of reach is tried again for half
+    /// a lease (the lease holds meanwhile) before the task counts a failure: a blip costs
+    /// nothing, a store that keeps failing the read fails the job after its attempts, as
+    /// any other failure. A shutdown meanwhile gives the task back.
+    async fn prepare(
+        &self,
+        job_id: i64,
+        shutdown: &mut watch::Receiver<bool>,
+    ) -> Result<Prepared, Unready> {
         let patience = (self.cfg.lease / 2, RETRY);
         let read = || self.queue.job_source(job_id);
-        let source = patiently(patience, "reading the job", read).await?;
+        let source = patiently(patience, "reading the job", shutdown, read).await?;
+        let spec = JobSpec::from_stored(&source.params_json)?;
+        let reference = match spec.reference_job {
+            Some(rid) => Some(self.reference(rid, shutdown).await?),
+            None => None,
+        };
         let (catalog, pool) = (self.catalog.clone(), self.pool.clone());
-        let mut prepared =
-            tokio::task::spawn_blocking(move || prepare(job_id, &source, &catalog, &pool))
-                .await
-                .map_err(|e| e.to_string())??;
-        if let Some(rid) = prepared.spec.reference_job {
-            prepared.reference = Some(self.reference(rid).await?);
-        }
+        let build = move || prepare(job_id, &source, spec, &catalog, &pool);
+        let mut prepared = tokio::task::spawn_blocking(build)
+            .await
+            .map_err(|e| e.to_string())??;
+        prepared.reference = reference;
         Ok(prepared)
     }
 
     /// Reference job `rid`'s image, from the store; it may have been deleted since the
     /// job was submitted.
-    async fn reference(&self, rid: i64) -> Result<Image, String> {
+    async fn reference(
+        &self,
+        rid: i64,
+        shutdown: &mut watch::Receiver<bool>,
+    ) -> Result<Image, Unready> {
         let gone = |e: String| {
             format!("reference job {rid}: its image cannot be read (was the job deleted?): {e}")
         };
         let patience = (self.cfg.lease / 2, RETRY);
         let read = || self.queue.job_image(rid, true);
-        let bytes = patiently(patience, "reading the reference", read).await;
-        let bytes = bytes
-            .map_err(gone)?
-            .ok_or_else(|| gone("no image".into()))?;
-        output::decode_exr(&bytes).map_err(|e| gone(e.to_string()))
+        let bytes = match patiently(patience, "reading the reference", shutdown, read).await {
+            Ok(bytes) => bytes,
+            Err(Unready::Failed(e)) => return Err(gone(e).into()),
+            Err(Unready::ShuttingDown) => return Err(Unready::ShuttingDown),
+        };
+        let bytes = bytes.ok_or_else(|| gone("no image".into()))?;
+        Ok(output::decode_exr(&bytes).map_err(|e| gone(e.to_string()))?)
+    }
+
+    /// Give a task back to the queue unrendered (the worker is shutting down).
+    async fn give_back(&self, lease: &Lease) {
+        if let Err(e) = self.queue.release(lease).await {
+            tracing::warn!("giving the task back: {e}");
+        }
     }
 
     async fn report_failure(&self, lease: &Lease, reason: &str) {
@@ -261,8 +284,16 @@ impl Task<'_> {
 
     /// Hand the result in; the last task's worker merges the job. A store out of reach is
     /// tried again (the lease may still hold, and if it has passed on, the fence refuses
-    /// the result and says so in the counters) until [`HAND_IN_PATIENCE`].
-    async fn hand_in(&self, lease: &Lease, job: &Prepared, result: &UnitResult) {
+    /// the result and says so in the counters) until [`HAND_IN_PATIENCE`], or until the
+    /// worker is told to shut down: then the result is dropped, and the task, its lease
+    /// run out, is rendered again elsewhere (to the same bytes).
+    async fn hand_in(
+        &self,
+        lease: &Lease,
+        job: &Prepared,
+        result: &UnitResult,
+        shutdown: &mut watch::Receiver<bool>,
+    ) {
         let give_up = tokio::time::Instant::now() + HAND_IN_PATIENCE;
         let stats = Some(result.stats_json.as_str());
         let completed = loop {
@@ -272,7 +303,16 @@ impl Task<'_> {
                         job = lease.job_id,
                         "handing in a result (trying again): {e}"
                     );
-                    tokio::time::sleep(RETRY).await;
+                    let told = *shutdown.borrow();
+                    let stopping = told
+                        || tokio::select! {
+                            _ = tokio::time::sleep(RETRY) => false,
+                            _ = shutdown.changed() => true,
+                        };
+                    if stopping {
+                        tracing::warn!(job = lease.job_id, "shutting down: result dropped");
+                        return;
+                    }
                 }
                 other => break other,
             }
