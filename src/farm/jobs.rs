@@ -67,17 +67,15 @@ impl Queue {
         Ok(true)
     }
 
-    /// Queued tasks per user (the queue depth of /metrics).
-    pub async fn depth_by_user(&self) -> Result<Vec<(i64, i64)>, FarmError> {
-        let rows = sqlx::query(
-            "SELECT user_id, count(*) FROM tasks WHERE state = 'queued'
-              GROUP BY user_id ORDER BY user_id",
+    /// The queue's depth for /metrics: queued tasks, and the users they belong to (one row,
+    /// however many users queue).
+    pub async fn queue_depth(&self) -> Result<QueueDepth, FarmError> {
+        let (tasks, users): (i64, i64) = sqlx::query_as(
+            "SELECT count(*), count(DISTINCT user_id) FROM tasks WHERE state = 'queued'",
         )
-        .fetch_all(self.pool())
+        .fetch_one(self.pool())
         .await?;
-        rows.iter()
-            .map(|r| Ok((r.try_get(0)?, r.try_get(1)?)))
-            .collect()
+        Ok(QueueDepth { tasks, users })
     }
 
     /// The tasks of job `id` done so far (their seqs, in merge order): what a preview
@@ -132,6 +130,13 @@ impl Queue {
             })
             .collect()
     }
+}
+
+/// Queued tasks, and how many users they belong to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct QueueDepth {
+    pub tasks: i64,
+    pub users: i64,
 }
 
 /// A task's unit, and its result and STATS.json once it is done.

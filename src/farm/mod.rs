@@ -22,7 +22,7 @@ pub mod task;
 pub mod worker;
 pub mod workers;
 
-pub use jobs::TaskResult;
+pub use jobs::{QueueDepth, TaskResult};
 pub use queue::{Completion, Lease, LeaseLost, NewTask, Queue};
 pub use records::{FarmJob, JobImages, JobSource, OverLimit, TaskCount, UserLimits};
 pub use worker::{WorkerConfig, run_worker};

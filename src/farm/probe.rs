@@ -99,19 +99,15 @@ async fn metrics_text(queue: &Queue) -> Result<String, FarmError> {
         "Stale results refused, from every worker of the farm.",
         fenced,
     );
-    let depth = queue.depth_by_user().await?;
+    let depth = queue.queue_depth().await?;
     let mut gauge = |name: &str, help: &str, v: i64| {
         out += &format!("# HELP {name} {help}\n# TYPE {name} gauge\n{name} {v}\n");
     };
-    gauge(
-        "photonbox_farm_queued_tasks",
-        "Queued tasks.",
-        depth.iter().map(|(_, n)| n).sum(),
-    );
+    gauge("photonbox_farm_queued_tasks", "Queued tasks.", depth.tasks);
     gauge(
         "photonbox_farm_queued_users",
         "Users with queued tasks.",
-        depth.len() as i64,
+        depth.users,
     );
     Ok(out)
 }
