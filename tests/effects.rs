@@ -215,3 +215,53 @@ fn with_every_light_shut_in_nothing_is_traced_and_the_image_is_black() {
     assert_eq!(out.stats.photons.global_stored, 0);
     assert!(out.image.pixels.iter().all(|p| p.iter().all(|c| *c == 0.0)));
 }
+
+/// A closed bipyramid around (0, 0.5, 0) of 2n triangles: a ring of n vertices at height
+/// 0.5, an apex above and one below, shared vertices, faces outward.
+fn bipyramid(n: usize) -> String {
+    let mut p = vec!["[0, 0.8, 0]".to_string(), "[0, 0.2, 0]".to_string()];
+    for i in 0..n {
+        let a = std::f64::consts::TAU * i as f64 / n as f64;
+        p.push(format!("[{:.9}, 0.5, {:.9}]", 0.3 * a.cos(), 0.3 * a.sin()));
+    }
+    let ring = |i: usize| 2 + i % n;
+    let t: Vec<String> = (0..n)
+        .flat_map(|i| {
+            [
+                format!("[0,{},{}]", ring(i + 1), ring(i)),
+                format!("[1,{},{}]", ring(i), ring(i + 1)),
+            ]
+        })
+        .collect();
+    format!(
+        r#"{{"type": "mesh", "material": "white", "positions": [{}], "triangles": [{}]}}"#,
+        p.join(","),
+        t.join(",")
+    )
+}
+
+/// Looking for point lights in meshes reads every triangle for every light: a scene of a few
+/// megabytes (many lights in a large mesh) would ask for minutes of it. The tests stop at a
+/// budget: the lights tested before it are found shut in, those after are taken to emit
+/// (the side the analysis errs on), the same on every run.
+#[test]
+fn looking_for_lights_in_a_large_mesh_stops_at_a_budget() {
+    let lights: Vec<String> = (0..400)
+        .map(|i| {
+            let (x, z) = (0.0001 * (i % 20) as f64, 0.0001 * (i / 20) as f64);
+            format!(r#"{{"type": "point", "position": [{x}, 0.47, {z}], "power": [1, 1, 1]}}"#)
+        })
+        .collect();
+    let json = shut_scene(&bipyramid(40_960), OUTSIDE).replace(
+        r#""lights": ["#,
+        &format!(r#""lights": [{},"#, lights.join(",")),
+    );
+    let s = scene(&json);
+    assert_eq!(s.shut_in.len(), 402);
+    let shut = s.shut_in.iter().take_while(|h| **h == Some(1)).count();
+    // 81,920 triangles: a few hundred lights' tests, then none (the last light of
+    // shut_scene is in the bipyramid too).
+    assert!((100..400).contains(&shut), "{shut} lights found shut in");
+    assert!(s.shut_in[shut..].iter().all(Option::is_none));
+    assert_eq!(scene(&json).shut_in, s.shut_in);
+}

@@ -20,47 +20,82 @@ use crate::render::material::Material;
 /// Relative margin within which a point counts as on a sphere (neither inside nor out).
 const SPHERE_MARGIN: f64 = 1e-9;
 
+/// Triangle tests the parity rays of the lights against meshes may take in all (about half
+/// a second): a scene of a few megabytes could otherwise ask for lights x triangles of
+/// them (100,000 point lights in a mesh of 80,000 triangles: minutes). Past it, a light is
+/// not looked for in meshes, the side this test errs on (it emits photons); the count, not
+/// a clock, decides, so the answer is the same on every run.
+const PARITY_BUDGET: u64 = 1 << 26;
+
 /// For each light, the index of a closed opaque object that holds it while the camera is
-/// outside, if any. Each (light, mesh) pair reads the mesh's triangles, so the cancel flag
-/// is checked for each pair.
+/// outside, if any. The cancel flag is checked for each (light, object) pair.
 pub fn shut_lights(desc: &SceneDesc, control: &Control) -> Result<Vec<Option<usize>>, Cancelled> {
     let camera = DVec3::from_array(desc.camera.position.0);
-    let mut watertight: HashMap<usize, bool> = HashMap::new();
-    desc.lights
-        .iter()
-        .map(|light| {
-            let mut cancelled = Ok(());
-            let found = desc.objects.iter().enumerate().position(|(i, o)| {
-                if let Err(c) = control.check() {
-                    cancelled = Err(c);
-                    return true;
+    let mut meshes = MeshTests {
+        camera,
+        known: HashMap::new(),
+        spent: 0,
+    };
+    let mut shut = Vec::with_capacity(desc.lights.len());
+    for light in &desc.lights {
+        let mut holder = None;
+        for (i, o) in desc.objects.iter().enumerate() {
+            control.check()?;
+            if matches!(
+                desc.materials[o.material as usize],
+                Material::Dielectric { .. }
+            ) {
+                continue;
+            }
+            let holds = match (&o.shape, light) {
+                (ShapeDesc::Sphere { center, radius }, _) => {
+                    sphere_holds(*center, *radius, light)
+                        && sphere_side(*center, *radius, camera) == Some(false)
                 }
-                if matches!(
-                    desc.materials[o.material as usize],
-                    Material::Dielectric { .. }
-                ) {
-                    return false;
+                (ShapeDesc::Mesh(m), LightDesc::Point { position, .. }) => {
+                    meshes.holds(i, m, *position)
                 }
-                match &o.shape {
-                    ShapeDesc::Sphere { center, radius } => {
-                        sphere_holds(*center, *radius, light)
-                            && sphere_side(*center, *radius, camera) == Some(false)
-                    }
-                    ShapeDesc::Quad { .. } => false,
-                    ShapeDesc::Mesh(m) => {
-                        let LightDesc::Point { position, .. } = light else {
-                            return false;
-                        };
-                        // Cheap tests first: the watertightness check reads every edge.
-                        mesh_side(m, *position) == Some(true)
-                            && mesh_side(m, camera) == Some(false)
-                            && *watertight.entry(i).or_insert_with(|| is_watertight(m))
-                    }
-                }
-            });
-            cancelled.map(|()| found)
-        })
-        .collect()
+                _ => false,
+            };
+            if holds {
+                holder = Some(i);
+                break;
+            }
+        }
+        shut.push(holder);
+    }
+    Ok(shut)
+}
+
+/// Point-in-mesh tests, with what each mesh's tests share worked out once: its bounds, and
+/// whether it can hold a light away from the camera at all (watertight, the camera
+/// outside).
+struct MeshTests {
+    camera: DVec3,
+    /// Per object index: the mesh's bounds, and whether it can shut a light in.
+    known: HashMap<usize, ((DVec3, DVec3), bool)>,
+    /// Triangle tests done so far, against [`PARITY_BUDGET`].
+    spent: u64,
+}
+
+impl MeshTests {
+    /// Whether mesh `m` (object `i`) holds point `p` while the camera is outside it.
+    fn holds(&mut self, i: usize, m: &MeshData, p: DVec3) -> bool {
+        let cost = 3 * m.triangles.len() as u64;
+        let (camera, spent) = (self.camera, &mut self.spent);
+        let &mut (bounds, can_shut) = self.known.entry(i).or_insert_with(|| {
+            let bounds = mesh_bounds(m);
+            *spent += cost;
+            // Cheap tests first: the watertightness check reads every edge.
+            let can = mesh_side(m, bounds, camera) == Some(false) && is_watertight(m);
+            (bounds, can)
+        });
+        if !can_shut || !within(bounds, p) || self.spent + cost > PARITY_BUDGET {
+            return false;
+        }
+        self.spent += cost;
+        mesh_side(m, bounds, p) == Some(true)
+    }
 }
 
 /// Some(true) strictly inside the sphere, Some(false) strictly outside, None on it.
@@ -119,19 +154,13 @@ fn is_watertight(m: &MeshData) -> bool {
 /// Inside by the parity of crossings along three unrelated directions: Some(true) or
 /// Some(false) when all three agree, None when they do not (a ray through an edge, a
 /// point on the surface, an open mesh).
-fn mesh_side(m: &MeshData, p: DVec3) -> Option<bool> {
+fn mesh_side(m: &MeshData, bounds: (DVec3, DVec3), p: DVec3) -> Option<bool> {
     const DIRS: [DVec3; 3] = [
         DVec3::new(0.5773, 0.6143, 0.5381),
         DVec3::new(-0.7072, 0.1211, 0.6966),
         DVec3::new(0.1830, -0.9511, 0.2487),
     ];
-    let (lo, hi) = m
-        .positions
-        .iter()
-        .fold((DVec3::MAX, DVec3::MIN), |(lo, hi), q| {
-            (lo.min(*q), hi.max(*q))
-        });
-    if p.cmplt(lo).any() || p.cmpgt(hi).any() {
+    if !within(bounds, p) {
         return Some(false);
     }
     let odd = |d: DVec3| {
@@ -147,6 +176,20 @@ fn mesh_side(m: &MeshData, p: DVec3) -> Option<bool> {
     };
     let first = odd(DIRS[0]);
     DIRS[1..].iter().all(|&d| odd(d) == first).then_some(first)
+}
+
+/// The smallest box around the mesh's vertices.
+fn mesh_bounds(m: &MeshData) -> (DVec3, DVec3) {
+    m.positions
+        .iter()
+        .fold((DVec3::MAX, DVec3::MIN), |(lo, hi), q| {
+            (lo.min(*q), hi.max(*q))
+        })
+}
+
+/// `p` within the box (its faces included).
+fn within((lo, hi): (DVec3, DVec3), p: DVec3) -> bool {
+    !(p.cmplt(lo).any() || p.cmpgt(hi).any())
 }
 
 /// The ray p + t d, t > 0, crosses triangle (a, b, c) (Moller and Trumbore 1997).
