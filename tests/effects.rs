@@ -5,7 +5,7 @@ mod common;
 
 use common::{render_checked, scene};
 use photonbox::render::{Control, Scene, render};
-use photonbox::spec::{EffectSwitches, PhotonMapping, RenderSpec};
+use photonbox::spec::{EffectSwitches, Integrator, Passes, PhotonMapping, RenderSpec, Stop};
 
 fn scene_file(name: &str) -> Scene {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -264,4 +264,39 @@ fn looking_for_lights_in_a_large_mesh_stops_at_a_budget() {
     assert!((100..400).contains(&shut), "{shut} lights found shut in");
     assert!(s.shut_in[shut..].iter().all(Option::is_none));
     assert_eq!(scene(&json).shut_in, s.shut_in);
+}
+
+/// Light tracing cannot show what the camera sees in a mirror or through glass (it joins
+/// light vertices to the camera directly): its stats say so, where the scene has them, and
+/// path tracing's do not.
+#[test]
+fn light_tracing_says_the_camera_sees_no_mirror_or_glass() {
+    let s = scene_file("cornell_mirror_glass.json");
+    let passes = Passes {
+        spp: 1,
+        stop: Stop::after(1),
+    };
+    let spec = |integrator| RenderSpec {
+        width: Some(8),
+        height: Some(8),
+        ..RenderSpec::new(integrator)
+    };
+    let lt = render(&s, &spec(Integrator::Lt(passes.clone())), &Control::none()).unwrap();
+    for name in ["specular_reflection", "refraction"] {
+        let e = &lt.stats.effects[name];
+        assert_eq!(e.how, "on light paths only", "{name}");
+        assert!(e.reason.contains("stays black"), "{name}: {e:?}");
+    }
+    let pt = render(&s, &spec(Integrator::Pt(passes)), &Control::none()).unwrap();
+    assert!(pt.stats.effects["refraction"].how.starts_with("ray traced"));
+    let diffuse = render(
+        &scene_file("cornell.json"),
+        &spec(Integrator::Lt(Passes {
+            spp: 1,
+            stop: Stop::after(1),
+        })),
+        &Control::none(),
+    )
+    .unwrap();
+    assert_eq!(diffuse.stats.effects["refraction"].how, "none");
 }

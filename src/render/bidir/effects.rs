@@ -95,4 +95,28 @@ pub(super) fn describe(effects: &mut BTreeMap<String, Effect>, modes: Modes, e: 
         };
         effects.insert(name.to_string(), entry);
     }
+    if modes == Modes::Lt {
+        camera_sees_no_specular(effects);
+    }
+}
+
+/// Light tracing joins light vertices to the camera directly, never through a delta BSDF:
+/// light paths reflect and refract as in every technique, but what the camera would see in
+/// a mirror or through glass stays black, and STATS.json says so.
+fn camera_sees_no_specular(effects: &mut BTreeMap<String, Effect>) {
+    let seen = [
+        ("specular_reflection", "reflected in a mirror or glass"),
+        ("refraction", "through glass"),
+    ];
+    for (name, what) in seen {
+        if let Some(e) = effects.get_mut(name)
+            && e.simulated
+        {
+            e.how = "on light paths only".to_string();
+            e.reason = format!(
+                "light tracing joins light vertices to the camera directly: what the camera \
+                 would see {what} stays black (pt, bdpt and vcm render it)"
+            );
+        }
+    }
 }
