@@ -14,18 +14,22 @@
 //!   subpaths carry the indirect light of the light's bright spots better than path
 //!   tracing's next-event estimation alone: `bdpt` (on cornell_spheres at 4 s, 40% less
 //!   relmse than `pt`);
-//! - no mirror or glass and area lights only: `pt`, whose camera paths also hit the lights
-//!   and whose roulette spares the first bounces: against `bdpt` at 1, 4 and 16 s, 3%,
-//!   16% and 15% less relmse on cornell, +1-2%, level and 7% less on knot, block_err level
-//!   or lower (docs/performance-history.md, "auto on area-lit rooms").
+//! - no mirror or glass and area lights only: `pt` or `bdpt`, by a pilot render of each
+//!   (`pilot.rs`): `pt`, whose camera paths also hit the lights and whose roulette spares
+//!   the first bounces, is 15-20% sooner on cornell (docs/performance-history.md, "auto on
+//!   area-lit rooms"), `bdpt` up to 4x sooner in rooms lit off a bright patch ("auto's
+//!   pilot").
 //!
 //! The choice is a function of the scene and the spec alone (never of the machine or the
 //! clock), so the same job renders the same bytes from the CLI and the server.
 
+use super::pilot::pt_against_bdpt;
+use crate::render::control::Control;
 use crate::render::light::Light;
+use crate::render::outcome::RenderError;
 use crate::render::scene::Scene;
 use crate::render::stats::Effect;
-use crate::spec::{Integrator, Merging, Passes, PhotonMapping};
+use crate::spec::{Integrator, Merging, Passes, PhotonMapping, RenderSpec};
 
 /// Photon-mapping settings from small to large, (emitted photons per map, final-gather
 /// rays, samples per pixel): the race's ladder, along which the error against the
@@ -88,8 +92,15 @@ pub(super) fn budget_photon(passes: &Passes, pixels: u64) -> Option<PhotonMappin
     }
 }
 
-/// The integrator for `scene` at `pixels`, with `passes`, and why.
-pub(super) fn choose(scene: &Scene, passes: &Passes, pixels: u64) -> (Integrator, Effect) {
+/// The integrator for `scene` at `pixels`, with `passes` (of `spec`, whose seed, depth and
+/// switches a pilot renders with), and why.
+pub(super) fn choose(
+    scene: &Scene,
+    spec: &RenderSpec,
+    passes: &Passes,
+    pixels: u64,
+    control: &Control,
+) -> Result<(Integrator, Effect), RenderError> {
     let specular = scene.materials.iter().any(|m| m.is_specular());
     let (integrator, reason) = match budget_photon(passes, pixels) {
         Some(photon) if specular => {
@@ -119,13 +130,7 @@ pub(super) fn choose(scene: &Scene, passes: &Passes, pixels: u64) -> (Integrator
              light and camera subpaths carry the indirect light of its bright spots"
                 .to_string(),
         ),
-        _ => (
-            Integrator::Pt(passes.clone()),
-            "no mirror or glass, and area lights only: no caustic to merge, and camera paths \
-             reach the lights themselves: path tracing, next-event estimation weighed \
-             against hitting the lights"
-                .to_string(),
-        ),
+        _ => pt_or_bdpt(scene, spec, passes, control)?,
     };
     let how = format!("auto chose {}", integrator.name().as_str());
     let effect = Effect {
@@ -133,7 +138,37 @@ pub(super) fn choose(scene: &Scene, passes: &Passes, pixels: u64) -> (Integrator
         how,
         reason,
     };
-    (integrator, effect)
+    Ok((integrator, effect))
+}
+
+/// A room without mirror or glass lit by area lights only: `pt` or `bdpt`, by the pilot
+/// (`pilot.rs`).
+fn pt_or_bdpt(
+    scene: &Scene,
+    spec: &RenderSpec,
+    passes: &Passes,
+    control: &Control,
+) -> Result<(Integrator, String), RenderError> {
+    let pilot = pt_against_bdpt(scene, spec, control)?;
+    let variances = format!(
+        "a pilot's variance per pass: pt {:.3e}, bdpt {:.3e}",
+        pilot.pt, pilot.bdpt
+    );
+    Ok(if pilot.prefers_bdpt() {
+        let why = format!(
+            "no mirror or glass, and area lights only: no caustic to merge; {variances}: \
+             connections between light and camera subpaths carry this scene's light sooner \
+             than path tracing"
+        );
+        (Integrator::Bdpt(passes.clone()), why)
+    } else {
+        let why = format!(
+            "no mirror or glass, and area lights only: no caustic to merge, and camera paths \
+             reach the lights themselves; {variances}: path tracing, next-event estimation \
+             weighed against hitting the lights"
+        );
+        (Integrator::Pt(passes.clone()), why)
+    })
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@
 
 mod auto;
 mod budget;
+mod pilot;
 
 pub use budget::{Needs, ProgressModel};
 
@@ -145,7 +146,8 @@ pub fn run(
     let chosen;
     let (spec, choice) = match &spec.integrator {
         Integrator::Auto(passes) => {
-            let (integrator, why) = auto::choose(scene, passes, width as u64 * height as u64);
+            let pixels = width as u64 * height as u64;
+            let (integrator, why) = auto::choose(scene, spec, passes, pixels, control)?;
             chosen = RenderSpec {
                 integrator,
                 ..spec.clone()

@@ -1,0 +1,114 @@
+//! `auto`'s pilot between `pt` and `bdpt` on a room without mirror or glass, lit by area
+//! lights only. Neither wins everywhere: in an open box lit from its ceiling `pt` reaches an
+//! error 15-20% sooner, but where the camera sees mostly light that came off a bright patch
+//! (a light facing a wall at a few centimetres, a light around a corner) `bdpt` does, by up
+//! to 4x (docs/performance-history.md, "auto's pilot"). The scene's facts do not tell the
+//! two apart (the share of seen surfaces lit directly was tried: 0.70 in cornell, 0.74 and
+//! 0.89 in two rooms where `bdpt` won), the variance of a small render does.
+//!
+//! The pilot renders the image at about 48x48 pixels, twice per integrator under two seeds
+//! of its own, and compares the per-pass variance of the two integrators (the squared
+//! difference between a pair, relative as `relmse` weighs it). `bdpt` is chosen when
+//! `pt`'s variance is more than [`BDPT_PASS_COST`] times `bdpt`'s: what a `bdpt` pass costs
+//! against a `pt` pass. A function of the scene and the spec alone (the pilot's bytes do not
+//! depend on the thread count or the clock), so the choice is the same on every run.
+
+use std::ops::ControlFlow;
+
+use super::Inputs;
+use crate::render::control::Control;
+use crate::render::film::Image;
+use crate::render::outcome::RenderError;
+use crate::render::sampling::splitmix64;
+use crate::render::scene::Scene;
+use crate::spec::{Integrator, Passes, RenderSpec, Stop};
+
+/// About how many times a `pt` pass's time a `bdpt` pass takes (1.5-1.8 in the rooms of
+/// docs/performance-history.md, "auto's pilot").
+const BDPT_PASS_COST: f64 = 1.8;
+
+/// Pixels of a pilot image (its aspect the camera's).
+const PILOT_PIXELS: f64 = 2304.0;
+
+/// Passes of each pilot render.
+const PILOT_PASSES: u32 = 16;
+
+/// What the pilot found: each integrator's per-pass variance (relative, summed over the
+/// pilot image's pixels and channels).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Pilot {
+    pub pt: f64,
+    pub bdpt: f64,
+}
+
+impl Pilot {
+    /// Whether `bdpt` reaches a given error sooner than `pt`, by the pilot.
+    pub fn prefers_bdpt(&self) -> bool {
+        self.pt > BDPT_PASS_COST * self.bdpt
+    }
+}
+
+/// The pilot of `spec` (its seed, depth and effect switches) on `scene`, cancelled with
+/// `control`.
+pub(super) fn pt_against_bdpt(
+    scene: &Scene,
+    spec: &RenderSpec,
+    control: &Control,
+) -> Result<Pilot, RenderError> {
+    let (w, h) = spec.resolution((scene.camera.width, scene.camera.height));
+    let aspect = (w as f64 / h as f64).sqrt();
+    let width = ((PILOT_PIXELS.sqrt() * aspect).round() as u32).clamp(4, 256);
+    let height = ((PILOT_PIXELS.sqrt() / aspect).round() as u32).clamp(4, 256);
+    let quiet = Control {
+        cancel: control.cancel,
+        progress: None,
+    };
+    let passes = Passes {
+        spp: 1,
+        stop: Stop::after(PILOT_PASSES),
+    };
+    let render = |integrator: &Integrator, k: u64| {
+        let pilot = RenderSpec {
+            width: Some(width),
+            height: Some(height),
+            seed: splitmix64(splitmix64(spec.seed ^ 0x7069_6c6f_7400_0000).wrapping_add(k)),
+            integrator: integrator.clone(),
+            ..spec.clone()
+        };
+        let mut go_on = |_: &_| ControlFlow::Continue(());
+        super::run(scene, &pilot, Inputs::fresh(), &quiet, &mut go_on).map(|o| o.image)
+    };
+    let pt = Integrator::Pt(passes.clone());
+    let bdpt = Integrator::Bdpt(passes);
+    let images = [
+        render(&pt, 1)?,
+        render(&pt, 2)?,
+        render(&bdpt, 1)?,
+        render(&bdpt, 2)?,
+    ];
+    Ok(Pilot {
+        pt: pass_variance(&images, 0),
+        bdpt: pass_variance(&images, 2),
+    })
+}
+
+/// The per-pass variance of the pair `images[at]`, `images[at + 1]` (each the mean of
+/// [`PILOT_PASSES`] passes): their squared difference is twice the variance of a mean,
+/// weighed by 1 / (m^2 + 0.01) with m the mean of all four images (as `relmse` weighs an
+/// error, the same weight for both integrators).
+fn pass_variance(images: &[Image; 4], at: usize) -> f64 {
+    let mut sum = 0.0;
+    for (i, (a, b)) in images[at]
+        .pixels
+        .iter()
+        .zip(&images[at + 1].pixels)
+        .enumerate()
+    {
+        for c in 0..3 {
+            let m = images.iter().map(|im| im.pixels[i][c] as f64).sum::<f64>() / 4.0;
+            let d = a[c] as f64 - b[c] as f64;
+            sum += d * d / (m * m + 0.01);
+        }
+    }
+    sum / 2.0 * PILOT_PASSES as f64
+}
