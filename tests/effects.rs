@@ -300,3 +300,40 @@ fn light_tracing_says_the_camera_sees_no_mirror_or_glass() {
     .unwrap();
     assert_eq!(diffuse.stats.effects["refraction"].how, "none");
 }
+
+/// The same budget bounds lights x objects: thousands of lights over thousands of small
+/// spheres stop being looked for once it is spent, so a light shut in a sphere is found
+/// when it comes first and taken to emit when it comes last.
+#[test]
+fn looking_for_lights_among_many_objects_stops_at_the_budget_too() {
+    let n = 9_000;
+    let mut objects = vec![SPHERE.to_string()];
+    objects.extend((1..n).map(|i| {
+        let x = 100.0 + (i % 100) as f64;
+        let z = (i / 100) as f64;
+        format!(
+            r#"{{"type": "sphere", "material": "white", "center": [{x}, 0, {z}], "radius": 0.1}}"#
+        )
+    }));
+    let shut = r#"{"type": "point", "position": [0, 0.5, 0], "power": [1, 1, 1]}"#;
+    let mut lights = vec![shut.to_string()];
+    lights.extend((1..n - 1).map(|i| {
+        format!(
+            r#"{{"type": "point", "position": [-50, 1, {}], "power": [1, 1, 1]}}"#,
+            i % 97
+        )
+    }));
+    lights.push(shut.to_string());
+    let json = format!(
+        r#"{{"camera": {{"position": [0, 1, 3], "look_at": [0, 0.5, 0], "up": [0, 1, 0],
+                       "fov": 50, "width": 8, "height": 8}},
+             "materials": {{"white": {{"type": "diffuse", "albedo": [0.7, 0.7, 0.7]}}}},
+             "objects": [{}], "lights": [{}]}}"#,
+        objects.join(","),
+        lights.join(",")
+    );
+    let s = scene(&json);
+    assert_eq!(s.shut_in.len(), n);
+    assert_eq!(s.shut_in[0], Some(0));
+    assert_eq!(s.shut_in[n - 1], None, "the last light was looked for");
+}

@@ -20,11 +20,12 @@ use crate::render::material::Material;
 /// Relative margin within which a point counts as on a sphere (neither inside nor out).
 const SPHERE_MARGIN: f64 = 1e-9;
 
-/// Triangle tests the parity rays of the lights against meshes may take in all (about half
-/// a second): a scene of a few megabytes could otherwise ask for lights x triangles of
-/// them (100,000 point lights in a mesh of 80,000 triangles: minutes). Past it, a light is
-/// not looked for in meshes, the side this test errs on (it emits photons); the count, not
-/// a clock, decides, so the answer is the same on every run.
+/// Tests the analysis may take in all (about half a second): one per (light, object) pair,
+/// and three per triangle for a point-in-mesh test. A scene of a few megabytes could
+/// otherwise ask for lights x triangles of them (100,000 point lights in a mesh of 80,000
+/// triangles: minutes) or lights x objects (70,000 of each: seconds). Past it, a light is
+/// not looked for any further, the side this analysis errs on (it emits photons); the
+/// count, not a clock, decides, so the answer is the same on every run.
 const PARITY_BUDGET: u64 = 1 << 26;
 
 /// For each light, the index of a closed opaque object that holds it while the camera is
@@ -41,6 +42,10 @@ pub fn shut_lights(desc: &SceneDesc, control: &Control) -> Result<Vec<Option<usi
         let mut holder = None;
         for (i, o) in desc.objects.iter().enumerate() {
             control.check()?;
+            if meshes.spent >= PARITY_BUDGET {
+                break;
+            }
+            meshes.spent += 1;
             if matches!(
                 desc.materials[o.material as usize],
                 Material::Dielectric { .. }
@@ -74,7 +79,7 @@ struct MeshTests {
     camera: DVec3,
     /// Per object index: the mesh's bounds, and whether it can shut a light in.
     known: HashMap<usize, ((DVec3, DVec3), bool)>,
-    /// Triangle tests done so far, against [`PARITY_BUDGET`].
+    /// Tests done so far (pairs and triangles), against [`PARITY_BUDGET`].
     spent: u64,
 }
 
