@@ -13,8 +13,9 @@ use axum::http::HeaderMap;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use futures_util::stream::{self, Stream, StreamExt};
 
-use super::api::{FarmApi, job_id, snapshot, user, visible_job};
+use super::api::{FarmApi, job_id, user, visible_job};
 use super::epoch_seconds;
+use super::snapshot::snapshot;
 use crate::server::error::ApiError;
 use crate::server::events::diff_events;
 use crate::server::state::Snapshot;

@@ -18,6 +18,7 @@ pub mod probe;
 pub mod queue;
 mod records;
 pub mod run;
+mod snapshot;
 pub mod task;
 pub mod worker;
 pub mod workers;
