@@ -62,16 +62,25 @@ where
             Ok(v) => return Ok(v),
             Err(e) if e.is_transient() && Instant::now() < give_up => {
                 tracing::warn!("{what} (trying again): {e}");
-                if *shutdown.borrow() {
+                if told_to_stop_within(patience.1, shutdown).await {
                     return Err(Unready::ShuttingDown);
-                }
-                tokio::select! {
-                    _ = tokio::time::sleep(patience.1) => {}
-                    _ = shutdown.changed() => return Err(Unready::ShuttingDown),
                 }
             }
             Err(e) => return Err(Unready::Failed(format!("{what}: {e}"))),
         }
+    }
+}
+
+/// Waits `pause` before a store's read is tried again; true if the worker is told to shut
+/// down before or meanwhile (the wait then ends at once).
+pub(super) async fn told_to_stop_within(
+    pause: Duration,
+    shutdown: &mut watch::Receiver<bool>,
+) -> bool {
+    let told = *shutdown.borrow();
+    told || tokio::select! {
+        _ = tokio::time::sleep(pause) => false,
+        _ = shutdown.changed() => true,
     }
 }
 

@@ -15,7 +15,7 @@ use anyhow::Context;
 use tokio::sync::watch;
 
 use super::outcome::{job_stats, merge};
-use super::prepared::{Prepared, Unready, patiently, prepare};
+use super::prepared::{Prepared, Unready, patiently, prepare, told_to_stop_within};
 use super::queue::CANCEL_CHANNEL;
 use super::records::JobImages;
 use super::task::{UnitResult, render_unit};
@@ -303,13 +303,7 @@ impl Task<'_> {
                         job = lease.job_id,
                         "handing in a result (trying again): {e}"
                     );
-                    let told = *shutdown.borrow();
-                    let stopping = told
-                        || tokio::select! {
-                            _ = tokio::time::sleep(RETRY) => false,
-                            _ = shutdown.changed() => true,
-                        };
-                    if stopping {
+                    if told_to_stop_within(RETRY, shutdown).await {
                         tracing::warn!(job = lease.job_id, "shutting down: result dropped");
                         return;
                     }

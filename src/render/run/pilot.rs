@@ -86,29 +86,27 @@ pub(super) fn pt_against_bdpt(
         render(&bdpt, 1)?,
         render(&bdpt, 2)?,
     ];
-    Ok(Pilot {
-        pt: pass_variance(&images, 0),
-        bdpt: pass_variance(&images, 2),
-    })
+    Ok(pass_variances(&images))
 }
 
-/// The per-pass variance of the pair `images[at]`, `images[at + 1]` (each the mean of
-/// [`PILOT_PASSES`] passes): their squared difference is twice the variance of a mean,
-/// weighed by 1 / (m^2 + 0.01) with m the mean of all four images (as `relmse` weighs an
-/// error, the same weight for both integrators).
-fn pass_variance(images: &[Image; 4], at: usize) -> f64 {
-    let mut sum = 0.0;
-    for (i, (a, b)) in images[at]
-        .pixels
-        .iter()
-        .zip(&images[at + 1].pixels)
-        .enumerate()
-    {
+/// Each integrator's per-pass variance from its pair of pilot images (`images`: pt, pt,
+/// bdpt, bdpt; each the mean of [`PILOT_PASSES`] passes): a pair's squared difference is
+/// twice the variance of a mean, weighed by 1 / (m^2 + 0.01) with m the mean of all four
+/// images (as `relmse` weighs an error, but the same weight for both integrators, where
+/// `accuracy::compare` would weigh each by its own noisy second image).
+fn pass_variances(images: &[Image; 4]) -> Pilot {
+    let (mut pt, mut bdpt) = (0.0, 0.0);
+    for i in 0..images[0].pixels.len() {
         for c in 0..3 {
-            let m = images.iter().map(|im| im.pixels[i][c] as f64).sum::<f64>() / 4.0;
-            let d = a[c] as f64 - b[c] as f64;
-            sum += d * d / (m * m + 0.01);
+            let [a, b, x, y] = images.each_ref().map(|im| im.pixels[i][c] as f64);
+            let weight = 1.0 / (((a + b + x + y) / 4.0).powi(2) + 0.01);
+            pt += (a - b).powi(2) * weight;
+            bdpt += (x - y).powi(2) * weight;
         }
     }
-    sum / 2.0 * PILOT_PASSES as f64
+    let per_pass = PILOT_PASSES as f64 / 2.0;
+    Pilot {
+        pt: pt * per_pass,
+        bdpt: bdpt * per_pass,
+    }
 }
