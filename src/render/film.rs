@@ -58,16 +58,21 @@ pub(crate) trait CameraPaths: Sync {
 
     fn radiance(&self, ray: &Ray, pixel: u64, s: &mut Sampler, scratch: &mut Self::Scratch) -> Rgb;
 
-    /// Sample `j` of `spp` of `pixel`'s random numbers: by default independent ones from
-    /// stream (seed, camera, pixel * spp + j).
-    #[inline]
-    fn sampler(&self, seed: u64, pixel: u64, j: u32, spp: u32) -> Sampler {
-        Sampler::new(seed, Stream::Camera, pixel * spp as u64 + j as u64)
-    }
+    /// Sample `j` of `spp` of `pixel`'s random numbers.
+    fn sampler(&self, seed: u64, pixel: u64, j: u32, spp: u32) -> Sampler;
 }
 
 impl CameraPaths for Shader<'_> {
     type Scratch = Scratch;
+
+    /// Point `j` of the pixel's own scrambled Sobol sequence (`qmc.rs`): a pixel's samples
+    /// are stratified in their jitter, their light samples and, through
+    /// [`Sampler::branch`], in their final gathers' directions together (measured:
+    /// docs/performance-history.md, "quasi-random samples for the camera pass").
+    #[inline]
+    fn sampler(&self, seed: u64, pixel: u64, j: u32, _: u32) -> Sampler {
+        Sampler::sobol(seed, Stream::Camera, pixel, j as u64)
+    }
 
     #[inline]
     fn radiance(&self, ray: &Ray, _: u64, s: &mut Sampler, scratch: &mut Scratch) -> Rgb {

@@ -26,6 +26,9 @@ use crate::render::sampling::{Stream, splitmix64};
 /// iterations is a fresh scrambled sequence).
 const BLOCK: u64 = 1 << 16;
 
+/// Mixed into a stream's seed for the sequence of its branches.
+const BRANCH: u64 = 0x6272_616e_6368_0000;
+
 /// A stream of one path's quasi-random numbers: the `n`-th point of its own sequence, one
 /// coordinate per draw.
 pub struct SobolStream {
@@ -47,6 +50,20 @@ impl SobolStream {
         SobolStream {
             index: (n % BLOCK) as u32,
             seed: b,
+            dim: 0,
+            set: [0.0; 4],
+        }
+    }
+
+    /// Branch `k` of `count` leaving this point (a final gather's rays): point
+    /// `index * count + k` of a sequence of its own, so that the branches of the first n
+    /// points of this sequence are the first n * count points of theirs, stratified
+    /// together (a pixel's gather rays over all of its samples).
+    pub fn branch(&self, k: u32, count: u32) -> SobolStream {
+        let wide = self.index as u64 * count as u64 + k as u64;
+        SobolStream {
+            index: (wide % BLOCK) as u32,
+            seed: splitmix64(self.seed ^ BRANCH ^ splitmix64(wide / BLOCK)),
             dim: 0,
             set: [0.0; 4],
         }
@@ -156,6 +173,27 @@ mod tests {
                 "pair {pair}: y not stratified"
             );
         }
+    }
+
+    /// The branches of a sequence's first points are one stratified set: 4 points with 8
+    /// branches each give 32 first pairs, one in each of 32 equal strips in x and in y
+    /// (a pixel's gather directions over its samples).
+    #[test]
+    fn branches_of_a_sequence_s_points_are_stratified_together() {
+        let (points, branches) = (4u64, 8u32);
+        let n = points as usize * branches as usize;
+        let (mut cols, mut rows) = (vec![0u32; n], vec![0u32; n]);
+        for j in 0..points {
+            let mut s = SobolStream::new(5, Stream::Camera, 77, j);
+            s.next_2d(); // the sample's own draws do not move its branches
+            for k in 0..branches {
+                let [x, y] = s.branch(k, branches).next_2d();
+                cols[(x * n as f32) as usize] += 1;
+                rows[(y * n as f32) as usize] += 1;
+            }
+        }
+        assert!(cols.iter().all(|&c| c == 1), "x not stratified: {cols:?}");
+        assert!(rows.iter().all(|&c| c == 1), "y not stratified: {rows:?}");
     }
 
     /// The tables give the crate's points, bit for bit.

@@ -55,6 +55,21 @@ impl Sampler {
         }
     }
 
+    /// Branch `k` of `count` from this sample (the rays of a final gather): for a Sobol
+    /// stream, a stream such that the branches of all of a pixel's samples are one
+    /// stratified sequence ([`SobolStream::branch`]); for independent numbers, a stream
+    /// seeded from this one's next number.
+    pub fn branch(&mut self, k: u32, count: u32) -> Sampler {
+        let source = match &mut self.source {
+            Source::Independent(rng) => {
+                let state = ((rng.random::<u64>() as u128) << 64) | splitmix64(k as u64) as u128;
+                Source::Independent(Pcg64Mcg::new(state))
+            }
+            Source::Sobol(q) => Source::Sobol(q.branch(k, count)),
+        };
+        Sampler { source }
+    }
+
     /// A placeholder for a lane without work, never drawn from.
     pub fn idle() -> Sampler {
         Sampler {

@@ -258,7 +258,9 @@ impl Shader<'_> {
 
     /// Final gathering (Jensen 2001, section 9.1.4): the mean radiance over cosine-sampled
     /// directions of the hemisphere, read at the first non-specular hit of each gather ray.
-    /// Multiplied by rho this is the indirect diffuse radiance at the point.
+    /// Multiplied by rho this is the indirect diffuse radiance at the point. Gather ray i
+    /// draws from branch i of the sample's stream, so that with quasi-random samples a
+    /// pixel's gather directions over all its samples are one stratified set.
     fn final_gather(
         &self,
         sp: &SurfacePoint,
@@ -281,8 +283,9 @@ impl Shader<'_> {
             if i % GATHER_CHECK == GATHER_CHECK - 1 && self.control.check().is_err() {
                 break;
             }
-            let wi = frame.to_world(cosine_hemisphere(s.next_2d()));
-            sum += self.trace(&spawn_ray(sp, wi), seg, s, scratch);
+            let mut b = s.branch(i, self.gather_rays);
+            let wi = frame.to_world(cosine_hemisphere(b.next_2d()));
+            sum += self.trace(&spawn_ray(sp, wi), seg, &mut b, scratch);
         }
         sum / self.gather_rays as f32
     }
