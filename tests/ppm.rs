@@ -6,7 +6,8 @@ mod common;
 use std::f64::consts::PI;
 use std::ops::ControlFlow;
 
-use common::{assert_all_finite, scene};
+use common::{WALL_PATCH, assert_all_finite, scene};
+use photonbox::render::accuracy::compare;
 use photonbox::render::photon::PhotonStore;
 use photonbox::render::ppm::{PpmState, StopReason};
 use photonbox::render::{Control, Image, Inputs, Piece, RenderError, RenderOutput, Scene, run};
@@ -184,6 +185,31 @@ fn ppm_converges_under_a_point_light() {
     let (r1, r64) = (rms(&images[0]), rms(&images[63]));
     eprintln!("relative rms: pass 1 {r1:.4}, pass 64 {r64:.4}");
     assert!(r64 < 0.5 * r1, "{r64} vs {r1}");
+}
+
+/// A pixel's camera samples continue one Sobol sequence from pass to pass (`Samples` in
+/// integrator/shade.rs): with final gathering, the gather directions of four passes are one
+/// stratified set, not four independent ones. Measured between seeds 1 and 2 (3 and 4):
+/// relmse 0.047 (0.054) with each pass's samples drawn on their own, 0.018 (0.020) now.
+#[test]
+fn passes_continue_each_pixel_s_stratified_samples() {
+    let s = scene(WALL_PATCH);
+    let render = |seed| {
+        let mut params = ppm_params(50_000, 4);
+        params.pass.gather_rays = 16;
+        let spec = RenderSpec {
+            seed,
+            ..RenderSpec::ppm(params)
+        };
+        let out = run_with(&s, &spec, None, b"test", &mut |_| ControlFlow::Continue(()));
+        out.unwrap().image
+    };
+    let relmse = compare(&render(1), &render(2)).unwrap().relmse;
+    eprintln!("ppm's gather noise between seeds over four passes: relmse {relmse:.4}");
+    assert!(
+        relmse < 0.03,
+        "relmse {relmse:.4}: the passes' gathers do not stratify each other"
+    );
 }
 
 #[test]

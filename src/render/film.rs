@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use crate::render::camera::Camera;
 use crate::render::control::{Cancelled, Control, Phase};
 use crate::render::geometry::Ray;
-use crate::render::integrator::{Scratch, Shader};
+use crate::render::integrator::{Samples, Scratch, Shader};
 use crate::render::math::Rgb;
 use crate::render::sampling::{Sampler, Stream};
 
@@ -58,20 +58,22 @@ pub(crate) trait CameraPaths: Sync {
 
     fn radiance(&self, ray: &Ray, pixel: u64, s: &mut Sampler, scratch: &mut Self::Scratch) -> Rgb;
 
-    /// Sample `j` of `spp` of `pixel`'s random numbers.
-    fn sampler(&self, seed: u64, pixel: u64, j: u32, spp: u32) -> Sampler;
+    /// Sample `j` of `pixel`'s random numbers.
+    fn sampler(&self, pixel: u64, j: u32) -> Sampler;
 }
 
 impl CameraPaths for Shader<'_> {
     type Scratch = Scratch;
 
-    /// Point `j` of the pixel's own scrambled Sobol sequence (`qmc.rs`): a pixel's samples
-    /// are stratified in their jitter, their light samples and, through
+    /// Point `first + j` of the pixel's own scrambled Sobol sequence (`qmc.rs`,
+    /// [`crate::render::integrator::Samples`]): a pixel's samples, over all the passes of a
+    /// progressive render, are stratified in their jitter, their light samples and, through
     /// [`Sampler::branch`], in their final gathers' directions together (measured:
     /// docs/performance-history.md, "quasi-random samples for the camera pass").
     #[inline]
-    fn sampler(&self, seed: u64, pixel: u64, j: u32, _: u32) -> Sampler {
-        Sampler::sobol(seed, Stream::Camera, pixel, j as u64)
+    fn sampler(&self, pixel: u64, j: u32) -> Sampler {
+        let Samples { seed, first } = self.samples;
+        Sampler::sobol(seed, Stream::Camera, pixel, first + j as u64)
     }
 
     #[inline]
@@ -118,8 +120,8 @@ impl PixelSum {
 }
 
 /// Render every pixel with `spp` jittered samples. Sample j of pixel i draws its random
-/// numbers from stream (seed, camera, i * spp + j) alone, so the image is bit-identical
-/// whatever the number of threads.
+/// numbers from `paths.sampler(i, j)` alone, so the image is bit-identical whatever the
+/// number of threads.
 ///
 /// The cancel flag is read after every sample: a tile of 4096 samples a pixel with 512
 /// gather rays each takes minutes, and cancel must stop a render within a second whatever
@@ -131,10 +133,9 @@ pub(crate) fn render_film<P: CameraPaths>(
     paths: &P,
     camera: &Camera,
     spp: u32,
-    seed: u64,
     control: &Control,
 ) -> Result<FilmOutput, Cancelled> {
-    render_film_rows(paths, camera, 0..camera.height, spp, seed, control)
+    render_film_rows(paths, camera, 0..camera.height, spp, control)
 }
 
 /// [`render_film`] of image rows `rows` alone: the output is that band (`rows.len()` rows),
@@ -144,7 +145,6 @@ pub(crate) fn render_film_rows<P: CameraPaths>(
     camera: &Camera,
     rows: std::ops::Range<u32>,
     spp: u32,
-    seed: u64,
     control: &Control,
 ) -> Result<FilmOutput, Cancelled> {
     let (w, y_start) = (camera.width, rows.start);
@@ -173,7 +173,7 @@ pub(crate) fn render_film_rows<P: CameraPaths>(
                     let pixel = (y_start + y) as u64 * w as u64 + x as u64;
                     let mut px = PixelSum::default();
                     for j in 0..spp {
-                        let mut s = paths.sampler(seed, pixel, j, spp);
+                        let mut s = paths.sampler(pixel, j);
                         let jitter = s.next_2d();
                         let y_image = (y_start + y) as f32;
                         let ray = camera.ray(x as f32 + jitter.x, y_image + jitter.y);

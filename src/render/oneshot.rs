@@ -8,7 +8,7 @@ use std::time::Instant;
 use crate::render::control::{Cancelled, Control};
 use crate::render::effects::{Analysis, analyse};
 use crate::render::film::render_film_rows;
-use crate::render::integrator::Shader;
+use crate::render::integrator::{Samples, Shader};
 use crate::render::outcome::RenderOutput;
 use crate::render::photon::{
     CausticLookup, Density, IrradianceCache, PhotonMaps, build_photon_maps,
@@ -85,9 +85,13 @@ pub(crate) fn render_with_maps(
         gather_rays,
         max_depth: spec.max_depth,
         control: *control,
+        samples: Samples {
+            seed: spec.seed,
+            first: 0,
+        },
     };
     let t_render = Instant::now();
-    let film = render_film_rows(&shader, &camera, rows, spec.spp(), spec.seed, control)?;
+    let film = render_film_rows(&shader, &camera, rows, spec.spp(), control)?;
     let render = t_render.elapsed().as_secs_f64();
 
     let stats = collect(&StatsInput {

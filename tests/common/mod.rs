@@ -6,6 +6,19 @@ pub mod glass_sphere;
 use photonbox::render::{Control, Image, RenderOutput, Scene, render};
 use photonbox::spec::RenderSpec;
 
+/// A floor lit by a point light and by the bright patch the light throws on a wall close
+/// behind it: indirect light that final gathering must find (24x24 pixels).
+pub const WALL_PATCH: &str = r#"{
+  "camera": {"position": [0, 3, -4], "look_at": [0, 0, 1], "up": [0, 1, 0], "fov": 50,
+             "width": 24, "height": 24},
+  "materials": {"white": {"type": "diffuse", "albedo": [0.8, 0.8, 0.8]}},
+  "objects": [
+    {"type": "quad", "material": "white", "corner": [-3, 0, -3], "edge_u": [0, 0, 6], "edge_v": [6, 0, 0]},
+    {"type": "quad", "material": "white", "corner": [-3, 0, 2], "edge_u": [6, 0, 0], "edge_v": [0, 4, 0]}
+  ],
+  "lights": [{"type": "point", "position": [0, 1, 1.5], "power": [100, 100, 100]}]
+}"#;
+
 /// Parse a scene from JSON text (no folder: no OBJ files).
 pub fn scene(json: &str) -> Scene {
     Scene::parse(json, None).unwrap_or_else(|e| panic!("test scene does not parse: {e}"))

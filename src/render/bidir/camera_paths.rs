@@ -45,7 +45,7 @@ impl CameraPaths for CameraPass<'_> {
 
     /// The pixel's point of its own Sobol sequence at this iteration (`qmc.rs`): one
     /// sample a pixel per iteration, so only the pixel names it.
-    fn sampler(&self, _: u64, pixel: u64, _: u32, _: u32) -> Sampler {
+    fn sampler(&self, pixel: u64, _: u32) -> Sampler {
         self.it.sampler(Stream::Camera, pixel)
     }
 

@@ -198,7 +198,7 @@ impl<'a> BidirPasses<'a> {
             tree: tree.as_ref(),
             r2,
         };
-        let film = render_film(&pass, &it.camera, 1, it.seed, control)?;
+        let film = render_film(&pass, &it.camera, 1, control)?;
         let mut image = film.image;
         for (px, s) in image.pixels.iter_mut().zip(&lights.splats.pixels) {
             for c in 0..3 {

@@ -24,7 +24,7 @@
 
 mod shade;
 
-pub use shade::{Scratch, Shader};
+pub use shade::{Samples, Scratch, Shader};
 
 use crate::render::photon::{ClassMask, PathClass};
 use crate::spec::{EffectSwitches, PhotonStore, RenderSpec};

@@ -29,6 +29,17 @@ pub struct Shader<'a> {
     pub max_depth: u32,
     /// Read within long final gathers (see [`GATHER_CHECK`]).
     pub control: Control<'a>,
+    pub samples: Samples,
+}
+
+/// Which points of each pixel's Sobol sequence a camera pass draws: sample j is point
+/// `first + j` of the pixel's sequence under `seed`. A one-shot render starts at 0; pass i
+/// of a progressive one (spp samples a pass) at (i - 1) spp under the job's seed, so that
+/// its passes stratify each other as one pass's samples do.
+#[derive(Clone, Copy, Debug)]
+pub struct Samples {
+    pub seed: u64,
+    pub first: u64,
 }
 
 /// Gather rays between two reads of the cancel flag: 65,536 gather rays (the limit) at one

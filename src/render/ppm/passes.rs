@@ -9,7 +9,7 @@ use crate::render::camera::Camera;
 use crate::render::control::Control;
 use crate::render::effects::Analysis;
 use crate::render::film::render_film;
-use crate::render::integrator::Shader;
+use crate::render::integrator::{Samples, Shader};
 use crate::render::outcome::RenderError;
 use crate::render::photon::{Density, PhotonMap, PhotonMaps, RadiusLookup, build_photon_maps};
 use crate::render::progressive::{PassAt, PassOutput, PassResult, Progression};
@@ -82,6 +82,7 @@ impl Progression for PpmPasses<'_> {
         fn lookup(m: &Option<PhotonMap>, r: f32) -> Option<Density<'_>> {
             m.as_ref().map(|m| Density::Radius(RadiusLookup::new(m, r)))
         }
+        let spp = self.ppm.pass.spp;
         let shader = Shader {
             scene: self.scene,
             plan: self.analysis.plan,
@@ -90,9 +91,16 @@ impl Progression for PpmPasses<'_> {
             gather_rays: self.ppm.pass.gather_rays,
             max_depth: self.spec.max_depth,
             control: *control,
+            // The job's sequences, continued pass after pass: a pixel's samples (and their
+            // gathers) over every pass are one stratified set, as in the bidirectional
+            // family's passes.
+            samples: Samples {
+                seed: self.spec.seed,
+                first: (pass as u64 - 1) * spp as u64,
+            },
         };
         let t_render = Instant::now();
-        let film = render_film(&shader, &self.camera, self.ppm.pass.spp, seed, control)?;
+        let film = render_film(&shader, &self.camera, spp, control)?;
         let render = t_render.elapsed().as_secs_f64();
         drop(shader);
         let stored = |m: &Option<PhotonMap>| m.as_ref().map_or(0, |m| m.len() as u64);
