@@ -10,7 +10,7 @@ use std::f64::consts::PI;
 use common::glass_sphere::{exits, landing_x, share_of_circle_in_square as share};
 use common::{analytic_pixels, point_lit, rel, render_checked, scene};
 use glam::DVec3;
-use photonbox::spec::{Integrator, Merging, Passes, PhotonMapping, RenderSpec, Stop};
+use photonbox::spec::{Integrator, Merging, Passes, PhotonMapping, Progressive, RenderSpec, Stop};
 
 /// Every integrator of the family, with `passes` passes of one sample per pixel.
 fn family(passes: u32) -> [(&'static str, RenderSpec); 4] {
@@ -195,13 +195,13 @@ const WALL_WASH: &str = r#"{
                 "edge_v": [1, 0, 0], "radiance": [20, 20, 20]}]
 }"#;
 
-/// `auto` (issue 20, the default integrator): a room without mirror or glass gets bdpt
-/// under a point light, pt or bdpt under area lights only by a pilot render of each (pt
-/// where the light shines into the room, bdpt where it washes a wall), and one with glass
-/// is rendered by vcm; the choice is exactly that integrator (the same bytes) and
-/// `effects.integrator` says which and why.
+/// `auto` (issue 20, the default integrator): a room without mirror or glass gets ppm with
+/// final gathering or bdpt by a pilot render of pt and bdpt (ppm where the light shines
+/// into the room, under a point light or an area light, bdpt where it washes a wall), and
+/// one with glass is rendered by vcm; the choice is exactly that integrator (the same
+/// bytes) and `effects.integrator` says which and why.
 #[test]
-fn auto_connects_in_a_point_lit_room_traces_an_area_lit_one_and_merges_behind_glass() {
+fn auto_gathers_in_an_open_room_connects_off_a_washed_wall_and_merges_behind_glass() {
     let passes = Passes {
         spp: 1,
         stop: Stop::after(2),
@@ -210,13 +210,17 @@ fn auto_connects_in_a_point_lit_room_traces_an_area_lit_one_and_merges_behind_gl
         passes: passes.clone(),
         ..Merging::DEFAULT
     };
+    let gathering = Integrator::Ppm(Progressive {
+        pass: PhotonMapping {
+            gather_rays: 8,
+            ..PhotonMapping::PPM_PASS
+        },
+        stop: passes.stop.clone(),
+        ..Progressive::DEFAULT
+    });
     for (text, chosen, explicit) in [
-        (CLOSED_SPHERE, "bdpt", Integrator::Bdpt(passes.clone())),
-        (
-            CLOSED_SPHERE_AREA_LIGHT,
-            "pt",
-            Integrator::Pt(passes.clone()),
-        ),
+        (CLOSED_SPHERE, "ppm", gathering.clone()),
+        (CLOSED_SPHERE_AREA_LIGHT, "ppm", gathering),
         (WALL_WASH, "bdpt", Integrator::Bdpt(passes.clone())),
         (GLASS_BOX, "vcm", Integrator::Vcm(vcm)),
     ] {
@@ -235,8 +239,8 @@ fn auto_connects_in_a_point_lit_room_traces_an_area_lit_one_and_merges_behind_gl
 
 /// Under a short time limit alone, auto renders a scene with glass as one photon render
 /// sized to the budget (the same bytes as that photon render asked for by name); with a
-/// pass count it keeps to vcm's converging passes; a point-lit diffuse room keeps bdpt
-/// whatever the budget.
+/// pass count it keeps to vcm's converging passes; a point-lit diffuse room keeps ppm with
+/// final gathering whatever the budget.
 #[test]
 fn auto_takes_a_photon_render_for_a_short_budget_on_glass() {
     let timed = |seconds: f64| Passes {
@@ -282,7 +286,7 @@ fn auto_takes_a_photon_render_for_a_short_budget_on_glass() {
     assert_eq!(long.stats.effects["integrator"].how, "auto chose vcm");
     let room = scene(CLOSED_SPHERE);
     let diffuse = render_checked(&room, &RenderSpec::new(Integrator::Auto(timed(0.5))));
-    assert_eq!(diffuse.stats.effects["integrator"].how, "auto chose bdpt");
+    assert_eq!(diffuse.stats.effects["integrator"].how, "auto chose ppm");
 }
 
 /// Asserts that `got` is within 0.5% of `want`, printing both.

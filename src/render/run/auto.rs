@@ -10,26 +10,27 @@
 //! - mirror or glass otherwise: caustics (light, specular, diffuse), which from a point
 //!   light only the light side reaches, and which seen through glass only merging carries:
 //!   `vcm`, which converges;
-//! - no mirror or glass and a point light: no caustic to merge; connections between
-//!   subpaths carry the indirect light of the light's bright spots better than path
-//!   tracing's next-event estimation alone: `bdpt` (on cornell_spheres at 4 s, 40% less
-//!   relmse than `pt`);
-//! - no mirror or glass and area lights only: `pt` or `bdpt`, by a pilot render of each
-//!   (`pilot.rs`): `pt`, whose camera paths also hit the lights and whose roulette spares
-//!   the first bounces, is 15-20% sooner on cornell (docs/performance-history.md, "auto on
-//!   area-lit rooms"), `bdpt` up to 4x sooner in rooms lit off a bright patch ("auto's
-//!   pilot").
+//! - no mirror or glass: no caustic to merge. A pilot render of `pt` and `bdpt`
+//!   (`pilot.rs`) tells a room whose indirect light a camera path's bounce finds easily
+//!   from one lit off a small bright patch (a light facing a wall at a few centimetres),
+//!   where `bdpt`'s connections are up to 4x sooner ("auto's pilot" in
+//!   docs/performance-history.md). In the first kind, `ppm` with final gathering
+//!   ([`GATHER_RAYS`] rays a sample): one bounce of a camera path, then the global map,
+//!   its gathers stratified over the passes, reached Mitsuba's relmse 2-4x sooner than
+//!   `pt` on cornell, knot and cornell_spheres ("quasi-random samples for the camera
+//!   pass"). In the second, its gather rays meet the patch as rarely as `pt`'s bounces do
+//!   (on tests/bidir.rs's `WALL_WASH`, 128x128, 8 s: relmse 0.49 against `bdpt`'s 0.0064),
+//!   so `bdpt`.
 //!
 //! The choice is a function of the scene and the spec alone (never of the machine or the
 //! clock), so the same job renders the same bytes from the CLI and the server.
 
 use super::pilot::pt_against_bdpt;
 use crate::render::control::Control;
-use crate::render::light::Light;
 use crate::render::outcome::RenderError;
 use crate::render::scene::Scene;
 use crate::render::stats::Effect;
-use crate::spec::{Integrator, Merging, Passes, PhotonMapping, RenderSpec};
+use crate::spec::{Integrator, Merging, Passes, PhotonMapping, Progressive, RenderSpec};
 
 /// Photon-mapping settings from small to large, (emitted photons per map, final-gather
 /// rays, samples per pixel): the race's ladder, along which the error against the
@@ -124,13 +125,7 @@ pub(super) fn choose(
                     .to_string(),
             )
         }
-        _ if scene.lights.iter().any(Light::is_delta) => (
-            Integrator::Bdpt(passes.clone()),
-            "no mirror or glass, and a point light: no caustic to merge; connections between \
-             light and camera subpaths carry the indirect light of its bright spots"
-                .to_string(),
-        ),
-        _ => pt_or_bdpt(scene, spec, passes, control)?,
+        _ => bdpt_or_gathering(scene, spec, passes, control)?,
     };
     let how = format!("auto chose {}", integrator.name().as_str());
     let effect = Effect {
@@ -141,9 +136,13 @@ pub(super) fn choose(
     Ok((integrator, effect))
 }
 
-/// A room without mirror or glass lit by area lights only: `pt` or `bdpt`, by the pilot
-/// (`pilot.rs`).
-fn pt_or_bdpt(
+/// Final-gather rays per camera sample of `auto`'s `ppm`: at 4 rays its passes are more
+/// but noisier, at 16 fewer; 8 reached Mitsuba's 1-s relmse soonest on cornell (256x256).
+const GATHER_RAYS: u32 = 8;
+
+/// A room without mirror or glass: `bdpt` or `ppm` with final gathering, by the pilot
+/// between `pt` and `bdpt` (`pilot.rs`): a final gather is a camera path's first bounce.
+fn bdpt_or_gathering(
     scene: &Scene,
     spec: &RenderSpec,
     passes: &Passes,
@@ -156,18 +155,27 @@ fn pt_or_bdpt(
     );
     Ok(if pilot.prefers_bdpt() {
         let why = format!(
-            "no mirror or glass, and area lights only: no caustic to merge; {variances}: \
-             connections between light and camera subpaths carry this scene's light sooner \
-             than path tracing"
+            "no mirror or glass: no caustic to merge; {variances}: connections between light \
+             and camera subpaths carry this scene's light sooner than camera paths' bounces"
         );
         (Integrator::Bdpt(passes.clone()), why)
     } else {
         let why = format!(
-            "no mirror or glass, and area lights only: no caustic to merge, and camera paths \
-             reach the lights themselves; {variances}: path tracing, next-event estimation \
-             weighed against hitting the lights"
+            "no mirror or glass: no caustic to merge; {variances}: a camera path's bounce \
+             finds this scene's indirect light, so progressive photon mapping with final \
+             gathering ({GATHER_RAYS} rays a sample, stratified over the passes) reads the \
+             rest from the global map"
         );
-        (Integrator::Pt(passes.clone()), why)
+        let ppm = Progressive {
+            pass: PhotonMapping {
+                gather_rays: GATHER_RAYS,
+                spp: passes.spp,
+                ..PhotonMapping::PPM_PASS
+            },
+            stop: passes.stop.clone(),
+            ..Progressive::DEFAULT
+        };
+        (Integrator::Ppm(ppm), why)
     })
 }
 

@@ -1,16 +1,20 @@
-//! `auto`'s pilot between `pt` and `bdpt` on a room without mirror or glass, lit by area
-//! lights only. Neither wins everywhere: in an open box lit from its ceiling `pt` reaches an
-//! error 15-20% sooner, but where the camera sees mostly light that came off a bright patch
-//! (a light facing a wall at a few centimetres, a light around a corner) `bdpt` does, by up
-//! to 4x (docs/performance-history.md, "auto's pilot"). The scene's facts do not tell the
-//! two apart (the share of seen surfaces lit directly was tried: 0.70 in cornell, 0.74 and
-//! 0.89 in two rooms where `bdpt` won), the variance of a small render does.
+//! `auto`'s pilot between camera paths and connections on a room without mirror or glass.
+//! In an open box lit from its ceiling a camera path's bounce finds the indirect light
+//! (`pt` reaches an error 15-20% sooner than `bdpt` there, and `ppm` with final gathering,
+//! whose gather ray is that bounce, 1.5-3x sooner than `pt`), but where the camera sees
+//! mostly light that came off a small bright patch (a light facing a wall at a few
+//! centimetres, a light around a corner) `bdpt` wins, by up to 4x over `pt` and far more
+//! over gathering (docs/performance-history.md, "auto's pilot", "quasi-random samples for
+//! the camera pass"). The scene's facts do not tell the two apart (the share of seen
+//! surfaces lit directly was tried: 0.70 in cornell, 0.74 and 0.89 in two rooms where
+//! `bdpt` won), the variance of a small render does.
 //!
 //! The pilot renders the image at about 48x48 pixels, twice per integrator under two seeds
 //! of its own, and compares the per-pass variance of the two integrators (the squared
 //! difference between a pair, relative as `relmse` weighs it). `bdpt` is chosen when
-//! `pt`'s variance is more than [`BDPT_PASS_COST`] times `bdpt`'s: what a `bdpt` pass costs
-//! against a `pt` pass. A function of the scene and the spec alone (the pilot's bytes do not
+//! `pt`'s variance is more than [`BDPT_PASS_COST`] x [`GATHERING_GAIN`] times `bdpt`'s:
+//! what a `bdpt` pass costs against a `pt` pass, times how much sooner gathering reaches
+//! `pt`'s error where a bounce finds the light. A function of the scene and the spec alone (the pilot's bytes do not
 //! depend on the thread count or the clock), so the choice is the same on every run.
 
 use std::ops::ControlFlow;
@@ -27,6 +31,12 @@ use crate::spec::{Integrator, Passes, RenderSpec, Stop};
 /// docs/performance-history.md, "auto's pilot").
 const BDPT_PASS_COST: f64 = 1.8;
 
+/// At least about how many times sooner `ppm` with final gathering reached Mitsuba's error
+/// than `pt` did on cornell, knot and cornell_spheres at 1, 4 and 16 s (1.5-5 for relmse,
+/// 1.4-2.2 for block_err but where both met the reference's noise; docs/performance.md,
+/// "2026-12-04, late night").
+const GATHERING_GAIN: f64 = 1.7;
+
 /// Pixels of a pilot image (its aspect the camera's).
 const PILOT_PIXELS: f64 = 2304.0;
 
@@ -42,9 +52,10 @@ pub(super) struct Pilot {
 }
 
 impl Pilot {
-    /// Whether `bdpt` reaches a given error sooner than `pt`, by the pilot.
+    /// Whether `bdpt` reaches a given error sooner than camera paths' bounces (`ppm`'s
+    /// final gathering), by the pilot.
     pub fn prefers_bdpt(&self) -> bool {
-        self.pt > BDPT_PASS_COST * self.bdpt
+        self.pt > BDPT_PASS_COST * GATHERING_GAIN * self.bdpt
     }
 }
 
