@@ -3,7 +3,8 @@
 in one run, per scene and time budget.
 
     python3 docs/validation/race.py [--refs target/refs] [--budgets 1 4 16 64]
-        [--integrators auto photon ppm pt lt bdpt vcm] [--scenes NAME ...] [--out target/race]
+        [--integrators auto photon ppm ppm_gather pt lt bdpt vcm] [--scenes NAME ...]
+        [--out target/race]
 
 Run by docs/validation/race.sh (which builds photonbox and puts Mitsuba's venv on the path).
 
@@ -48,6 +49,11 @@ SCENES = {
     "cornell": ("scenes/cornell.json", False),
     "knot": ("scenes/knot.json", False),
 }
+
+
+# Integrators raced with options of their own: `ppm_gather` is ppm with final gathering, as
+# `auto` renders a room without mirror or glass whose light a camera path's bounce finds.
+VARIANTS = {"ppm_gather": ["--integrator", "ppm", "--gather-rays", "8"]}
 
 
 def refcheck(*args):
@@ -125,7 +131,8 @@ def photonbox_runs(name, scene, ref, integrator, longest, out, tag=None):
     t0 = time.time()
     run = [PHOTONBOX, "render", scene, "-o", base + ".png", "--exr", base + ".exr",
            "--stats", stats, "--width", str(W), "--height", str(H), "--seed", "7",
-           "--integrator", integrator, "--time-limit", str(longest), "--reference", ref]
+           *VARIANTS.get(integrator, ["--integrator", integrator]),
+           "--time-limit", str(longest), "--reference", ref]
     subprocess.run(run, check=True, capture_output=True)
     wall = time.time() - t0
     s = json.load(open(stats))
@@ -157,7 +164,7 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "target", "race"))
     ap.add_argument("--budgets", type=float, nargs="+", default=[1, 4, 16, 64])
     ap.add_argument("--integrators", nargs="+",
-                    default=["auto", "photon", "ppm", "pt", "lt", "bdpt", "vcm"])
+                    default=["auto", "photon", "ppm", "ppm_gather", "pt", "lt", "bdpt", "vcm"])
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
     ap.add_argument("--report-only", action="store_true",
                     help="print the tables and plots of OUT/points.json, render nothing")

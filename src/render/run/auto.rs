@@ -140,6 +140,20 @@ pub(super) fn choose(
 /// but noisier, at 16 fewer; 8 reached Mitsuba's 1-s relmse soonest on cornell (256x256).
 const GATHER_RAYS: u32 = 8;
 
+/// `ppm` with final gathering as `auto` renders a room whose light a camera path's bounce
+/// finds, with `passes`.
+pub(super) fn gathering(passes: &Passes) -> Progressive {
+    Progressive {
+        pass: PhotonMapping {
+            gather_rays: GATHER_RAYS,
+            spp: passes.spp,
+            ..PhotonMapping::PPM_PASS
+        },
+        stop: passes.stop.clone(),
+        ..Progressive::DEFAULT
+    }
+}
+
 /// A room without mirror or glass: `bdpt` or `ppm` with final gathering, by the pilot
 /// between `pt` and `bdpt` (`pilot.rs`): a final gather is a camera path's first bounce.
 fn bdpt_or_gathering(
@@ -166,16 +180,7 @@ fn bdpt_or_gathering(
              gathering ({GATHER_RAYS} rays a sample, stratified over the passes) reads the \
              rest from the global map"
         );
-        let ppm = Progressive {
-            pass: PhotonMapping {
-                gather_rays: GATHER_RAYS,
-                spp: passes.spp,
-                ..PhotonMapping::PPM_PASS
-            },
-            stop: passes.stop.clone(),
-            ..Progressive::DEFAULT
-        };
-        (Integrator::Ppm(ppm), why)
+        (Integrator::Ppm(gathering(passes)), why)
     })
 }
 

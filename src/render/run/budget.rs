@@ -41,17 +41,14 @@ impl Needs {
         let progressive = spec.is_progressive() as u64;
         let film = pixels * 48 * (1 + 2 * progressive);
         let geometry = triangles as u64 * 1200;
-        // Auto may choose vcm (counted below) or, under a short time limit, a photon
-        // render: the larger needs of the two.
-        let photon = match &spec.integrator {
-            Integrator::Auto(passes) => super::auto::budget_photon(passes, pixels).map(|p| {
-                let photon = RenderSpec {
-                    integrator: Integrator::Photon(p),
-                    ..spec.clone()
-                };
-                Needs::of(&photon, pixels, triangles)
-            }),
-            _ => None,
+        // Auto may choose vcm (counted below), ppm with final gathering or, under a short
+        // time limit, a photon render: the largest needs of them.
+        let alternatives = match &spec.integrator {
+            Integrator::Auto(passes) => [
+                super::auto::budget_photon(passes, pixels).map(Integrator::Photon),
+                Some(Integrator::Ppm(super::auto::gathering(passes))),
+            ],
+            _ => [None, None],
         };
         let own = Needs {
             memory_bytes: maps
@@ -63,7 +60,16 @@ impl Needs {
             work: work(spec, pixels),
             result_bytes: pixels * 20 + progressive * pixels * 48 + (64 << 10),
         };
-        photon.map_or(own, |p| own.or(p))
+        alternatives
+            .into_iter()
+            .flatten()
+            .fold(own, |needs, integrator| {
+                let alternative = RenderSpec {
+                    integrator,
+                    ..spec.clone()
+                };
+                needs.or(Needs::of(&alternative, pixels, triangles))
+            })
     }
 
     /// Needs that cover both `self` and `other` (either may run).
@@ -233,6 +239,23 @@ mod tests {
         let m = ppm(until);
         assert_eq!(m.fraction(passes(3, cap), 3, 2.5), 0.25);
         assert_eq!(m.fraction(passes(3, cap), 3, 0.0), 3.0 / cap as f64);
+    }
+
+    /// `auto`'s needs cover every integrator it may choose: at a small image, ppm with final
+    /// gathering's photon maps outweigh vcm's light vertices.
+    #[test]
+    fn auto_needs_what_ppm_with_gathering_needs() {
+        let passes = crate::spec::Passes::DEFAULT;
+        let auto = Needs::of(
+            &RenderSpec::new(Integrator::Auto(passes.clone())),
+            32 * 32,
+            0,
+        );
+        let ppm = RenderSpec::ppm(super::super::auto::gathering(&passes));
+        let gathering = Needs::of(&ppm, 32 * 32, 0);
+        assert!(gathering.memory_bytes > 10 << 20, "{gathering:?}");
+        assert!(auto.memory_bytes >= gathering.memory_bytes, "{auto:?}");
+        assert!(auto.work >= gathering.work, "{auto:?}");
     }
 
     /// Passes and a time limit: whichever runs out first leads.
