@@ -29,6 +29,7 @@ pub struct Shader<'a> {
     pub max_depth: u32,
     /// Read within long final gathers (see [`GATHER_CHECK`]).
     pub control: Control<'a>,
+    /// Which points of the pixels' quasi-random sequences this camera pass draws.
     pub samples: Samples,
 }
 

@@ -16,11 +16,11 @@
 //!   where `bdpt`'s connections are up to 4x sooner ("auto's pilot" in
 //!   docs/performance-history.md). In the first kind, `ppm` with final gathering
 //!   ([`GATHER_RAYS`] rays a sample): one bounce of a camera path, then the global map,
-//!   its gathers stratified over the passes, reached Mitsuba's relmse 2-4x sooner than
-//!   `pt` on cornell, knot and cornell_spheres ("quasi-random samples for the camera
-//!   pass"). In the second, its gather rays meet the patch as rarely as `pt`'s bounces do
-//!   (on tests/bidir.rs's `WALL_WASH`, 128x128, 8 s: relmse 0.49 against `bdpt`'s 0.0064),
-//!   so `bdpt`.
+//!   its gathers stratified over the passes, reached Mitsuba's relmse 1.5-5x sooner than
+//!   `pt` on cornell, knot and cornell_spheres (docs/performance.md, "2026-12-04, late
+//!   night"). In the second, its gather rays meet the patch as rarely as `pt`'s bounces do
+//!   (on tests/bidir.rs's `WALL_WASH`, 128x128, 8 s: relmse 0.49 against `bdpt`'s 0.0064;
+//!   docs/performance-history.md, "auto's gathering"), so `bdpt`.
 //!
 //! The choice is a function of the scene and the spec alone (never of the machine or the
 //! clock), so the same job renders the same bytes from the CLI and the server.
@@ -136,8 +136,9 @@ pub(super) fn choose(
     Ok((integrator, effect))
 }
 
-/// Final-gather rays per camera sample of `auto`'s `ppm`: at 4 rays its passes are more
-/// but noisier, at 16 fewer; 8 reached Mitsuba's 1-s relmse soonest on cornell (256x256).
+/// Final-gather rays per camera sample of `auto`'s `ppm`: on cornell at 256x256, 8 rays
+/// reached relmse 0.00149 in 1 s against 16 rays' 0.00268 (with each pass's samples on
+/// their own, 4 and 8 rays were level: docs/performance-history.md, "auto's gathering").
 const GATHER_RAYS: u32 = 8;
 
 /// `ppm` with final gathering as `auto` renders a room whose light a camera path's bounce
