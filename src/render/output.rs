@@ -75,13 +75,23 @@ fn partial_name(path: &Path) -> PathBuf {
     path.with_extension(format!("partial.{ext}"))
 }
 
+/// Whether `path` names something other than a regular file (`-o /dev/null`, a FIFO):
+/// written in place, since renaming a file over it would replace the device itself (as
+/// root, /dev/null became a regular file that way).
+fn special_file(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
 /// Write `path` through a temporary file beside it: `write` fills the temporary file, which
 /// is synced to disk and then renamed over `path`. A crash leaves the old file or the new
-/// one, never a torn one.
+/// one, never a torn one. A device or FIFO is written in place ([`special_file`]).
 pub fn write_atomically<E: From<std::io::Error>>(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), E>,
 ) -> Result<(), E> {
+    if special_file(path) {
+        return write(path);
+    }
     let tmp = partial_name(path);
     write(&tmp)?;
     std::fs::File::open(&tmp)?.sync_all()?;
@@ -151,6 +161,34 @@ fn linear(img: DynamicImage, hint: image::error::ImageFormatHint) -> image::Imag
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A FIFO (as a device would) is written in place, not replaced by a renamed file; a
+    /// regular file, a missing one and a directory are not special.
+    #[test]
+    fn devices_and_fifos_are_written_in_place() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        assert!(made.unwrap().success(), "mkfifo");
+        let file = dir.path().join("image.png");
+        std::fs::write(&file, b"old").unwrap();
+        assert!(special_file(&fifo));
+        assert!(special_file(Path::new("/dev/null")));
+        assert!(!special_file(&file));
+        assert!(!special_file(&dir.path().join("missing.png")));
+        assert!(!special_file(dir.path()));
+        // In place: the writer gets the special path itself (never opened here, so a FIFO
+        // without a reader cannot block the test).
+        let mut given = None;
+        write_atomically::<std::io::Error>(&fifo, |p| {
+            given = Some(p.to_path_buf());
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(given.as_deref(), Some(fifo.as_path()));
+        use std::os::unix::fs::FileTypeExt;
+        assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+    }
 
     #[test]
     fn srgb_curve_endpoints_and_midpoint() {
