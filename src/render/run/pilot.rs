@@ -1,21 +1,22 @@
 //! `auto`'s pilot between camera paths and connections on a room without mirror or glass.
 //! In an open box lit from its ceiling a camera path's bounce finds the indirect light
 //! (`pt` reaches an error 15-20% sooner than `bdpt` there, and `ppm` with final gathering,
-//! whose gather ray is that bounce, 1.5-3x sooner than `pt`), but where the camera sees
+//! whose gather ray is that bounce, 1.5-5x sooner than `pt`), but where the camera sees
 //! mostly light that came off a small bright patch (a light facing a wall at a few
 //! centimetres, a light around a corner) `bdpt` wins, by up to 4x over `pt` and far more
-//! over gathering (docs/performance-history.md, "auto's pilot", "quasi-random samples for
-//! the camera pass"). The scene's facts do not tell the two apart (the share of seen
-//! surfaces lit directly was tried: 0.70 in cornell, 0.74 and 0.89 in two rooms where
-//! `bdpt` won), the variance of a small render does.
+//! over gathering (docs/performance-history.md, "auto's pilot", "auto's gathering"). The
+//! scene's facts do not tell the two apart (the share of seen surfaces lit directly was
+//! tried: 0.70 in cornell, 0.74 and 0.89 in two rooms where `bdpt` won), the variance of a
+//! small render does.
 //!
 //! The pilot renders the image at about 48x48 pixels, twice per integrator under two seeds
 //! of its own, and compares the per-pass variance of the two integrators (the squared
 //! difference between a pair, relative as `relmse` weighs it). `bdpt` is chosen when
 //! `pt`'s variance is more than [`BDPT_PASS_COST`] x [`GATHERING_GAIN`] times `bdpt`'s:
 //! what a `bdpt` pass costs against a `pt` pass, times how much sooner gathering reaches
-//! `pt`'s error where a bounce finds the light. A function of the scene and the spec alone (the pilot's bytes do not
-//! depend on the thread count or the clock), so the choice is the same on every run.
+//! `pt`'s error where a bounce finds the light. A function of the scene and the spec alone
+//! (the pilot's bytes do not depend on the thread count or the clock), so the choice is the
+//! same on every run.
 
 use std::ops::ControlFlow;
 
