@@ -24,6 +24,7 @@ pub mod qmc;
 mod run;
 pub mod sampling;
 pub mod scene;
+mod spherical_rect;
 pub(crate) mod stack;
 pub mod stats;
 

@@ -251,7 +251,7 @@ impl Shader<'_> {
         let mut l = Rgb::ZERO;
         for light in &self.scene.lights {
             let u = s.next_2d();
-            let Some(ls) = light.sample_li(sp.p, u) else {
+            let Some(ls) = light.sample_li_by_solid_angle(sp.p, u) else {
                 continue;
             };
             let f = m.eval(wo, ls.wi, sp.n);

@@ -10,22 +10,20 @@
 //! - mirror or glass otherwise: caustics (light, specular, diffuse), which from a point
 //!   light only the light side reaches, and which seen through glass only merging carries:
 //!   `vcm`, which converges;
-//! - no mirror or glass: no caustic to merge. A pilot render of `pt` and `bdpt`
-//!   (`pilot.rs`) tells a room whose indirect light a camera path's bounce finds easily
-//!   from one lit off a small bright patch (a light facing a wall at a few centimetres),
-//!   where `bdpt`'s connections are up to 4x sooner ("auto's pilot" in
-//!   docs/performance-history.md). In the first kind, `ppm` with final gathering
-//!   ([`GATHER_RAYS`] rays a sample): one bounce of a camera path, then the global map,
-//!   its gathers stratified over the passes, reached Mitsuba's relmse 1.5-5x sooner than
-//!   `pt` on cornell, knot and cornell_spheres (docs/performance.md, "2026-12-04, late
-//!   night"). In the second, its gather rays meet the patch as rarely as `pt`'s bounces do
-//!   (on tests/bidir.rs's `WALL_WASH`, 128x128, 8 s: relmse 0.49 against `bdpt`'s 0.0064;
-//!   docs/performance-history.md, "auto's gathering"), so `bdpt`.
+//! - no mirror or glass: no caustic to merge. `ppm` with final gathering ([`GATHER_RAYS`]
+//!   rays a sample): one bounce of a camera path, then the global map, its gathers
+//!   stratified over the passes, reached Mitsuba's relmse 1.5-5x sooner than `pt` on
+//!   cornell, knot and cornell_spheres (docs/performance.md, "2026-12-04, late night").
+//!   Pilot renders (`pilot.rs`: `pt` and `bdpt`, then where `pt` does poorly gathering and
+//!   `bdpt`) find the rooms where gather rays meet the light's bright patch too rarely (a
+//!   skewed quad light facing a wall at a few centimetres, which shadow rays sample by
+//!   area: relmse 2.3 against `bdpt`'s 0.0041 at 128x128, 6 s;
+//!   docs/performance-history.md, "auto's gathering pilot"), and take `bdpt` there.
 //!
 //! The choice is a function of the scene and the spec alone (never of the machine or the
 //! clock), so the same job renders the same bytes from the CLI and the server.
 
-use super::pilot::pt_against_bdpt;
+use super::pilot::gathering_against_bdpt;
 use crate::render::control::Control;
 use crate::render::outcome::RenderError;
 use crate::render::scene::Scene;
@@ -155,31 +153,34 @@ pub(super) fn gathering(passes: &Passes) -> Progressive {
     }
 }
 
-/// A room without mirror or glass: `bdpt` or `ppm` with final gathering, by the pilot
-/// between `pt` and `bdpt` (`pilot.rs`): a final gather is a camera path's first bounce.
+/// A room without mirror or glass: `bdpt` or `ppm` with final gathering, by a pilot render
+/// of both (`pilot.rs`).
 fn bdpt_or_gathering(
     scene: &Scene,
     spec: &RenderSpec,
     passes: &Passes,
     control: &Control,
 ) -> Result<(Integrator, String), RenderError> {
-    let pilot = pt_against_bdpt(scene, spec, control)?;
+    let pilot = gathering_against_bdpt(scene, spec, control)?;
+    let gathered = pilot
+        .gathering
+        .map_or(String::new(), |g| format!(", gathering {g:.3e}"));
     let variances = format!(
-        "a pilot's variance per pass: pt {:.3e}, bdpt {:.3e}",
+        "a pilot's variance per pass: pt {:.3e}, bdpt {:.3e}{gathered}",
         pilot.pt, pilot.bdpt
     );
     Ok(if pilot.prefers_bdpt() {
         let why = format!(
             "no mirror or glass: no caustic to merge; {variances}: connections between light \
-             and camera subpaths carry this scene's light sooner than camera paths' bounces"
+             and camera subpaths carry this scene's light sooner than final gathering's rays"
         );
         (Integrator::Bdpt(passes.clone()), why)
     } else {
         let why = format!(
-            "no mirror or glass: no caustic to merge; {variances}: a camera path's bounce \
-             finds this scene's indirect light, so progressive photon mapping with final \
-             gathering ({GATHER_RAYS} rays a sample, stratified over the passes) reads the \
-             rest from the global map"
+            "no mirror or glass: no caustic to merge; {variances}: gather rays find this \
+             scene's indirect light, so progressive photon mapping with final gathering \
+             ({GATHER_RAYS} rays a sample, stratified over the passes) reads the rest from \
+             the global map"
         );
         (Integrator::Ppm(gathering(passes)), why)
     })

@@ -1,21 +1,32 @@
-//! `auto`'s pilot between camera paths and connections on a room without mirror or glass.
-//! In an open box lit from its ceiling a camera path's bounce finds the indirect light
-//! (`pt` reaches an error 15-20% sooner than `bdpt` there, and `ppm` with final gathering,
-//! whose gather ray is that bounce, 1.5-5x sooner than `pt`), but where the camera sees
-//! mostly light that came off a small bright patch (a light facing a wall at a few
-//! centimetres, a light around a corner) `bdpt` wins, by up to 4x over `pt` and far more
-//! over gathering (docs/performance-history.md, "auto's pilot", "auto's gathering"). The
-//! scene's facts do not tell the two apart (the share of seen surfaces lit directly was
-//! tried: 0.70 in cornell, 0.74 and 0.89 in two rooms where `bdpt` won), the variance of a
-//! small render does.
+//! `auto`'s pilot between final gathering and connections on a room without mirror or
+//! glass. In an open box lit from its ceiling `ppm` with final gathering reached Mitsuba's
+//! error 1.5-5x sooner than `pt`, and `pt` 15-20% sooner than `bdpt` (docs/performance.md,
+//! "2026-12-04, late night"; docs/performance-history.md, "auto's pilot"); where the camera
+//! sees mostly light that came off a small bright patch (a skewed quad light facing a wall
+//! at a few centimetres, which shadow rays sample by area) a gather ray finds the patch as
+//! rarely as a camera path's bounce does, and `bdpt`'s connections may win. The scene's
+//! facts do not tell the two apart (the share of seen surfaces lit directly was tried: 0.70
+//! in cornell, 0.74 and 0.89 in two rooms where `bdpt` won against `pt`), the variance of
+//! a small render does.
 //!
 //! The pilot renders the image at about 48x48 pixels, twice per integrator under two seeds
-//! of its own, and compares the per-pass variance of the two integrators (the squared
-//! difference between a pair, relative as `relmse` weighs it). `bdpt` is chosen when
-//! `pt`'s variance is more than [`BDPT_PASS_COST`] x [`GATHERING_GAIN`] times `bdpt`'s:
-//! what a `bdpt` pass costs against a `pt` pass, times how much sooner gathering reaches
-//! `pt`'s error where a bounce finds the light. A function of the scene and the spec alone
-//! (the pilot's bytes do not depend on the thread count or the clock), so the choice is the
+//! of its own, [`PILOT_PASSES`] passes each, and compares per-pass variances (the squared
+//! difference between a pair, relative as `relmse` weighs it), in two stages:
+//!
+//! 1. `pt` against `bdpt` (0.1-0.2 s): where `pt`'s variance is within
+//!    [`BOUNCE_FINDS_THE_LIGHT`] times `bdpt`'s, a camera path's bounce finds the light,
+//!    and so do gather rays: gathering, without more pilot (cornell, knot);
+//! 2. otherwise `auto`'s gathering itself (its photons scaled to the pilot's pixels, so
+//!    that a density estimate spans as many pixels as in the render; about 0.2 s more)
+//!    against `bdpt`: `bdpt` when gathering's variance times [`GATHERING_PASS_COST`] is
+//!    the larger. A point light's hot spot (cornell_spheres) makes `pt` poor but not
+//!    gathering, whose shadow rays reach the light from where its gather rays land; a
+//!    light that shadow rays sample poorly from there (a parallelogram a few centimetres
+//!    from the wall it faces) makes both poor.
+//!
+//! Before 2026-12-05 the first stage decided alone, and chose `bdpt` on cornell_spheres,
+//! where gathering is 1.3-3x sooner. A function of the scene and the spec alone (the
+//! pilot's bytes do not depend on the thread count or the clock), so the choice is the
 //! same on every run.
 
 use std::ops::ControlFlow;
@@ -28,41 +39,52 @@ use crate::render::sampling::splitmix64;
 use crate::render::scene::Scene;
 use crate::spec::{Integrator, Passes, RenderSpec, Stop};
 
-/// About how many times a `pt` pass's time a `bdpt` pass takes (1.5-1.8 in the rooms of
-/// docs/performance-history.md, "auto's pilot").
-const BDPT_PASS_COST: f64 = 1.8;
+/// Below how many times `bdpt`'s per-pass variance `pt`'s lies where a camera path's bounce
+/// finds the light, so that gathering needs no pilot of its own: a `bdpt` pass's cost in
+/// `pt` passes (1.5-1.8), times the least of how much sooner gathering reached Mitsuba's
+/// error than `pt` (1.7). pt/bdpt was 1.5-2.0 on cornell and knot, 4.4-6.4 where a bright
+/// patch lights the room (docs/performance-history.md, "auto's pilot").
+const BOUNCE_FINDS_THE_LIGHT: f64 = 1.8 * 1.7;
 
-/// At least about how many times sooner `ppm` with final gathering reached Mitsuba's error
-/// than `pt` did on cornell, knot and cornell_spheres at 1, 4 and 16 s (1.5-5 for relmse,
-/// 1.4-2.2 for block_err but where both met the reference's noise; docs/performance.md,
-/// "2026-12-04, late night").
-const GATHERING_GAIN: f64 = 1.7;
+/// About how many times a `bdpt` pass's time a pass of `auto`'s gathering takes (one
+/// sample and its gather rays a pixel, and the pass's photons): 1.95 on cornell_spheres,
+/// 2.4 on cornell, 3.3 on tests/bidir.rs's `WALL_WASH` at 256x256
+/// (docs/performance-history.md, "auto's gathering pilot").
+const GATHERING_PASS_COST: f64 = 2.5;
 
 /// Pixels of a pilot image (its aspect the camera's).
 const PILOT_PIXELS: f64 = 2304.0;
 
-/// Passes of each pilot render.
+/// Passes of each pilot render. Fewer passes of gathering would be cheaper (a pilot render
+/// of it took 0.10 s on cornell, `bdpt`'s 0.04 s), but 8 missed the rare bright gathers of
+/// a skewed light washing a wall in 4 of 5 seeds (16: in none).
 const PILOT_PASSES: u32 = 16;
 
+/// The fewest photons a pilot pass of gathering traces, however small the image.
+const MIN_PILOT_PHOTONS: u64 = 1_000;
+
 /// What the pilot found: each integrator's per-pass variance (relative, summed over the
-/// pilot image's pixels and channels).
+/// pilot image's pixels and channels); gathering's only where `pt`'s bounce found the
+/// light poorly.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Pilot {
     pub pt: f64,
     pub bdpt: f64,
+    pub gathering: Option<f64>,
 }
 
 impl Pilot {
-    /// Whether `bdpt` reaches a given error sooner than camera paths' bounces (`ppm`'s
-    /// final gathering), by the pilot.
+    /// Whether `bdpt` reaches a given error sooner than `ppm` with final gathering, by the
+    /// pilot: variance times the cost of a pass.
     pub fn prefers_bdpt(&self) -> bool {
-        self.pt > BDPT_PASS_COST * GATHERING_GAIN * self.bdpt
+        self.gathering
+            .is_some_and(|g| g * GATHERING_PASS_COST > self.bdpt)
     }
 }
 
 /// The pilot of `spec` (its seed, depth and effect switches) on `scene`, cancelled with
-/// `control`.
-pub(super) fn pt_against_bdpt(
+/// `control`: `pt` against `bdpt`, then, where `pt` did poorly, gathering against `bdpt`.
+pub(super) fn gathering_against_bdpt(
     scene: &Scene,
     spec: &RenderSpec,
     control: &Control,
@@ -90,35 +112,52 @@ pub(super) fn pt_against_bdpt(
         let mut go_on = |_: &_| ControlFlow::Continue(());
         super::run(scene, &pilot, Inputs::fresh(), &quiet, &mut go_on).map(|o| o.image)
     };
-    let pt = Integrator::Pt(passes.clone());
-    let bdpt = Integrator::Bdpt(passes);
-    let images = [
-        render(&pt, 1)?,
-        render(&pt, 2)?,
-        render(&bdpt, 1)?,
-        render(&bdpt, 2)?,
-    ];
-    Ok(pass_variances(&images))
+    let pair = |integrator: &Integrator| {
+        Ok::<_, RenderError>([render(integrator, 1)?, render(integrator, 2)?])
+    };
+    let bdpt = pair(&Integrator::Bdpt(passes.clone()))?;
+    let pt = pair(&Integrator::Pt(passes.clone()))?;
+    let (pt, bdpt_by_pt) = pass_variances(&pt, &bdpt);
+    if pt <= BOUNCE_FINDS_THE_LIGHT * bdpt_by_pt {
+        return Ok(Pilot {
+            pt,
+            bdpt: bdpt_by_pt,
+            gathering: None,
+        });
+    }
+    // As many photons a pilot pixel as the render will have a pixel.
+    let mut gathering = super::auto::gathering(&passes);
+    let scale = (width * height) as f64 / (w as f64 * h as f64);
+    let scaled = |n: u64| {
+        ((n as f64 * scale).round() as u64)
+            .max(MIN_PILOT_PHOTONS)
+            .min(n)
+    };
+    gathering.pass.photons = scaled(gathering.pass.photons);
+    gathering.pass.caustic_photons = scaled(gathering.pass.caustic_photons);
+    let (gathering, bdpt) = pass_variances(&pair(&Integrator::Ppm(gathering))?, &bdpt);
+    Ok(Pilot {
+        pt,
+        bdpt,
+        gathering: Some(gathering),
+    })
 }
 
-/// Each integrator's per-pass variance from its pair of pilot images (`images`: pt, pt,
-/// bdpt, bdpt; each the mean of [`PILOT_PASSES`] passes): a pair's squared difference is
-/// twice the variance of a mean, weighed by 1 / (m^2 + 0.01) with m the mean of all four
-/// images (as `relmse` weighs an error, but the same weight for both integrators, where
-/// `accuracy::compare` would weigh each by its own noisy second image).
-fn pass_variances(images: &[Image; 4]) -> Pilot {
-    let (mut pt, mut bdpt) = (0.0, 0.0);
-    for i in 0..images[0].pixels.len() {
+/// Two integrators' per-pass variances from a pair of pilot images of each (each the mean
+/// of [`PILOT_PASSES`] passes): a pair's squared difference is twice the variance of a
+/// mean, weighed by 1 / (m^2 + 0.01) with m the mean of all four images (as `relmse` weighs
+/// an error, but the same weight for both integrators, where `accuracy::compare` would
+/// weigh each by its own noisy second image).
+fn pass_variances([a, b]: &[Image; 2], [x, y]: &[Image; 2]) -> (f64, f64) {
+    let (mut first, mut second) = (0.0, 0.0);
+    for i in 0..a.pixels.len() {
         for c in 0..3 {
-            let [a, b, x, y] = images.each_ref().map(|im| im.pixels[i][c] as f64);
+            let [a, b, x, y] = [a, b, x, y].map(|im| im.pixels[i][c] as f64);
             let weight = 1.0 / (((a + b + x + y) / 4.0).powi(2) + 0.01);
-            pt += (a - b).powi(2) * weight;
-            bdpt += (x - y).powi(2) * weight;
+            first += (a - b).powi(2) * weight;
+            second += (x - y).powi(2) * weight;
         }
     }
     let per_pass = PILOT_PASSES as f64 / 2.0;
-    Pilot {
-        pt: pt * per_pass,
-        bdpt: bdpt * per_pass,
-    }
+    (first * per_pass, second * per_pass)
 }
