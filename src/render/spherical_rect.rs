@@ -104,15 +104,16 @@ impl SphericalRect {
     }
 }
 
-/// Within how many of a quad light's areas (squared distance to its centre) shadow rays
-/// sample it by solid angle: from two side lengths away, area samples' weights span about
-/// 5x (cos / distance^2 over the quad), further away less.
-const CLOSE: f32 = 4.0;
+/// Within how many times its squared diagonal of a quad light's centre shadow rays sample
+/// it by solid angle (the diagonal, not the area, so that a long thin light is close
+/// wherever it is long): a square's two side lengths, from where area samples' weights
+/// span about 5x (cos / distance^2 over the quad), further away less.
+const CLOSE: f32 = 2.0;
 
 impl Light {
     /// [`Light::sample_li`] for the camera pass's shadow rays, which no other technique
     /// weighs against: a rectangular quad light close to the receiver (its centre within
-    /// [`CLOSE`] areas, squared distance) by the solid angle it subtends, whose weight stays
+    /// [`CLOSE`] squared diagonals) by the solid angle it subtends, whose weight stays
     /// bounded however close; any other light, and a far quad, whose area samples' weights
     /// differ little, as `sample_li` samples it. That is cheaper: by solid angle everywhere,
     /// a ppm render with gathering on cornell took 19% more time, near the quad only 1%.
@@ -124,11 +125,12 @@ impl Light {
             edge_u,
             edge_v,
             n,
-            area,
             radiance,
             prim,
+            ..
         } = *self
-            && (p - (corner + 0.5 * (edge_u + edge_v))).length_squared() < CLOSE * area
+            && (p - (corner + 0.5 * (edge_u + edge_v))).length_squared()
+                < CLOSE * (edge_u + edge_v).length_squared()
             && edge_u.dot(edge_v).abs() <= 1e-4 * edge_u.length() * edge_v.length()
             && let Some(rect) = SphericalRect::new(p, corner, edge_u, edge_v)
         {
@@ -237,6 +239,25 @@ mod tests {
         let by_area = light.sample_li(far, u).map(|ls| ls.target);
         assert_eq!(
             light.sample_li_by_solid_angle(far, u).map(|ls| ls.target),
+            by_area
+        );
+        // A strip 20 long and 0.1 wide, seen from 5 off its centre along it: far in widths
+        // (and areas), close in lengths.
+        let strip = Light::Quad {
+            corner: Vec3A::new(-10.0, -0.05, 1.0),
+            edge_u: Vec3A::new(20.0, 0.0, 0.0),
+            edge_v: Vec3A::new(0.0, 0.1, 0.0),
+            n: Vec3A::new(0.0, 0.0, -1.0),
+            area: 2.0,
+            radiance: crate::render::math::Rgb::splat(1.0),
+            prim: 0,
+        };
+        let near_end = Vec3A::new(5.0, 0.0, 0.0);
+        let by_area = strip.sample_li(near_end, u).map(|ls| ls.target);
+        assert_ne!(
+            strip
+                .sample_li_by_solid_angle(near_end, u)
+                .map(|ls| ls.target),
             by_area
         );
         let skewed = quad(Vec3A::new(0.5, a, 0.0));

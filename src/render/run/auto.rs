@@ -23,7 +23,7 @@
 //! The choice is a function of the scene and the spec alone (never of the machine or the
 //! clock), so the same job renders the same bytes from the CLI and the server.
 
-use super::pilot::gathering_against_bdpt;
+use super::pilot::run_pilot;
 use crate::render::control::Control;
 use crate::render::outcome::RenderError;
 use crate::render::scene::Scene;
@@ -153,15 +153,16 @@ pub(super) fn gathering(passes: &Passes) -> Progressive {
     }
 }
 
-/// A room without mirror or glass: `bdpt` or `ppm` with final gathering, by a pilot render
-/// of both (`pilot.rs`).
+/// A room without mirror or glass: `bdpt` or `ppm` with final gathering, by the pilot's
+/// small renders (`pilot.rs`: `pt` against `bdpt`, then where `pt` does poorly gathering
+/// against `bdpt`).
 fn bdpt_or_gathering(
     scene: &Scene,
     spec: &RenderSpec,
     passes: &Passes,
     control: &Control,
 ) -> Result<(Integrator, String), RenderError> {
-    let pilot = gathering_against_bdpt(scene, spec, control)?;
+    let pilot = run_pilot(scene, spec, control)?;
     let gathered = pilot
         .gathering
         .map_or(String::new(), |g| format!(", gathering {g:.3e}"));

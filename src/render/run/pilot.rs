@@ -84,7 +84,7 @@ impl Pilot {
 
 /// The pilot of `spec` (its seed, depth and effect switches) on `scene`, cancelled with
 /// `control`: `pt` against `bdpt`, then, where `pt` did poorly, gathering against `bdpt`.
-pub(super) fn gathering_against_bdpt(
+pub(super) fn run_pilot(
     scene: &Scene,
     spec: &RenderSpec,
     control: &Control,
