@@ -132,21 +132,25 @@ impl Light {
             && (p - (corner + 0.5 * (edge_u + edge_v))).length_squared()
                 < CLOSE * (edge_u + edge_v).length_squared()
             && edge_u.dot(edge_v).abs() <= 1e-4 * edge_u.length() * edge_v.length()
-            && let Some(rect) = SphericalRect::new(p, corner, edge_u, edge_v)
         {
-            // The quad emits toward n only.
+            // The quad emits toward n only: nothing to sample behind it, and no solid angle
+            // (f64 and four arc cosines) to compute.
             if n.dot(p - corner) <= 0.0 {
                 return None;
             }
-            let q = rect.sample(u);
-            let d = q - p;
-            let dist = d.length();
-            return (dist > 0.0).then(|| LightSample {
-                wi: d / dist,
-                target: q,
-                prim,
-                li_over_pdf: radiance * rect.solid_angle(),
-            });
+            // A solid angle too small to sample this way (a receiver grazing the quad's
+            // plane) falls through to area sampling.
+            if let Some(rect) = SphericalRect::new(p, corner, edge_u, edge_v) {
+                let q = rect.sample(u);
+                let d = q - p;
+                let dist = d.length();
+                return (dist > 0.0).then(|| LightSample {
+                    wi: d / dist,
+                    target: q,
+                    prim,
+                    li_over_pdf: radiance * rect.solid_angle(),
+                });
+            }
         }
         self.sample_li(p, u)
     }
@@ -209,16 +213,23 @@ mod tests {
     #[test]
     fn a_close_quad_light_s_samples_are_bounded_and_unbiased() {
         let (a, h) = (2.0f32, 0.02f32);
-        let quad = |edge_v: Vec3A| Light::Quad {
-            corner: Vec3A::new(-1.0, -1.0, h),
-            edge_u: Vec3A::new(a, 0.0, 0.0),
-            edge_v,
-            n: Vec3A::new(0.0, 0.0, -1.0),
-            area: a * a,
-            radiance: crate::render::math::Rgb::splat(1.0),
-            prim: 0,
+        // As the scene builds a quad light: its normal and area from its edges.
+        let quad = |corner: Vec3A, edge_u: Vec3A, edge_v: Vec3A| {
+            let c = edge_u.cross(edge_v);
+            Light::Quad {
+                corner,
+                edge_u,
+                edge_v,
+                n: c.normalize(),
+                area: c.length(),
+                radiance: crate::render::math::Rgb::splat(1.0),
+                prim: 0,
+            }
         };
-        let light = quad(Vec3A::new(0.0, a, 0.0));
+        // Facing -z, toward the receiver at the origin.
+        let square =
+            |edge_v: Vec3A| quad(Vec3A::new(-1.0, -1.0, h), Vec3A::new(0.0, a, 0.0), edge_v);
+        let light = square(Vec3A::new(a, 0.0, 0.0));
         let n = 64;
         let (mut e, mut max) = (0.0f64, 0.0f32);
         for i in 0..n {
@@ -243,15 +254,11 @@ mod tests {
         );
         // A strip 20 long and 0.1 wide, seen from 5 off its centre along it: far in widths
         // (and areas), close in lengths.
-        let strip = Light::Quad {
-            corner: Vec3A::new(-10.0, -0.05, 1.0),
-            edge_u: Vec3A::new(20.0, 0.0, 0.0),
-            edge_v: Vec3A::new(0.0, 0.1, 0.0),
-            n: Vec3A::new(0.0, 0.0, -1.0),
-            area: 2.0,
-            radiance: crate::render::math::Rgb::splat(1.0),
-            prim: 0,
-        };
+        let strip = quad(
+            Vec3A::new(-10.0, -0.05, 1.0),
+            Vec3A::new(0.0, 0.1, 0.0),
+            Vec3A::new(20.0, 0.0, 0.0),
+        );
         let near_end = Vec3A::new(5.0, 0.0, 0.0);
         let by_area = strip.sample_li(near_end, u).map(|ls| ls.target);
         assert_ne!(
@@ -260,7 +267,7 @@ mod tests {
                 .map(|ls| ls.target),
             by_area
         );
-        let skewed = quad(Vec3A::new(0.5, a, 0.0));
+        let skewed = square(Vec3A::new(a, 0.5, 0.0));
         let by_area = skewed.sample_li(Vec3A::ZERO, u).map(|ls| ls.target);
         let ls = skewed.sample_li_by_solid_angle(Vec3A::ZERO, u);
         assert_eq!(ls.map(|ls| ls.target), by_area);
