@@ -1,6 +1,8 @@
 //! The photon kd-tree against kiddo (the maintained k-NN crate) on real photon maps of the
 //! seed's scene (1): build time for 1M photons, and k-NN queries for k = 10, 50, 100 on maps
-//! of 100k and 1M photons. Results are recorded in docs/performance.md.
+//! of 100k and 1M photons; and the fixed-radius range search of a ppm pass (photonbox's tree
+//! and hashed grid, and kiddo), at the radius of a first pass and of later ones. Results
+//! are recorded in docs/performance.md and docs/performance-history.md.
 //!
 //!     cargo bench --bench kdtree
 
@@ -11,7 +13,7 @@ use std::path::Path;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3A;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
-use photonbox::render::photon::{KdItem, KdTree, KnnScratch, Photon, PhotonStore};
+use photonbox::render::photon::{KdItem, KdTree, KnnScratch, Photon, PhotonStore, RangeGrid};
 use photonbox::render::{Control, Scene, trace_maps};
 use photonbox::spec::{PhotonMapping, RenderSpec};
 
@@ -122,5 +124,64 @@ fn knn(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, build, knn);
+/// Range searches as a ppm pass makes them: every photon strictly within r of a query,
+/// its flux summed (`RadiusLookup`). The queries are scattered, as final gathering's are.
+/// r is the median distance to the 10th nearest photon (a first pass's radius for ppm's
+/// k = 10) and a quarter of it (r^2 shrinks as N^(alpha - 1): about pass 100).
+fn range(c: &mut Criterion) {
+    let ph = photons(100_000);
+    let pos: Vec<[f32; 3]> = ph.iter().map(|p| p.pos).collect();
+    let tree = KdTree::build(ph.clone());
+    let kiddo: ImmutableKdTree<f32, 3> =
+        ImmutableKdTree::new_from_slice(&pos).expect("kiddo builds");
+    let qs = queries(&ph, 10_000);
+    let mut s = KnnScratch::default();
+    let mut d10: Vec<f32> = qs
+        .iter()
+        .map(|q| tree.knn(*q, 10, f32::INFINITY, &|_| true, &mut s))
+        .collect();
+    d10.sort_by(f32::total_cmp);
+    let r2_first = d10[d10.len() / 2];
+    let mut g = c.benchmark_group("range_100k_photons");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(qs.len() as u64));
+    for (name, r2) in [("first_pass", r2_first), ("later_pass", r2_first / 16.0)] {
+        let grid = RangeGrid::build(&ph, r2).expect("a grid");
+        let flux = |p: &Photon| p.relative_power().x;
+        g.bench_with_input(BenchmarkId::new("photonbox_tree", name), &r2, |b, &r2| {
+            b.iter(|| {
+                let mut acc = 0.0;
+                for q in &qs {
+                    tree.within(*q, r2, &mut |p, _, _| acc += flux(p));
+                }
+                black_box(acc)
+            })
+        });
+        g.bench_with_input(BenchmarkId::new("photonbox_grid", name), &r2, |b, _| {
+            b.iter(|| {
+                let mut acc = 0.0;
+                for q in &qs {
+                    grid.within(*q, &mut |p, _| acc += flux(p));
+                }
+                black_box(acc)
+            })
+        });
+        g.bench_with_input(BenchmarkId::new("kiddo", name), &r2, |b, &r2| {
+            b.iter(|| {
+                let mut acc = 0.0;
+                for q in &qs {
+                    kiddo
+                        .query(&q.to_array())
+                        .within::<SquaredEuclidean<f32>>(r2)
+                        .unsorted()
+                        .visit(|n| acc += flux(&ph[n.item as usize]));
+                }
+                black_box(acc)
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, build, knn, range);
 criterion_main!(benches);

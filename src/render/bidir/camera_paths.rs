@@ -14,17 +14,15 @@ use crate::render::film::CameraPaths;
 use crate::render::geometry::{Hit, Ray, Surface, SurfacePoint, spawn_ray_to};
 use crate::render::material::{Material, Transport};
 use crate::render::math::Rgb;
-use crate::render::photon::KdTree;
+use crate::render::photon::RangeGrid;
 use crate::render::sampling::{Sampler, Stream};
 
-/// One iteration's camera pass: its light subpaths, and their vertices in a kd-tree for
-/// merging.
+/// One iteration's camera pass: its light subpaths, and their vertices in a grid for
+/// merging, built for the iteration's merge radius.
 pub(super) struct CameraPass<'a> {
     pub it: &'a Iteration<'a>,
     pub lights: &'a LightPaths,
-    pub tree: Option<&'a KdTree<LightVertex>>,
-    /// Squared merge radius.
-    pub r2: f32,
+    pub grid: Option<&'a RangeGrid<LightVertex>>,
 }
 
 /// A non-specular camera vertex where techniques join.
@@ -132,8 +130,8 @@ impl CameraPass<'_> {
                 }
             }
         }
-        if let Some(tree) = self.tree {
-            l += self.merge(v, tree) * self.it.factors.vm_normalization;
+        if let Some(grid) = self.grid {
+            l += self.merge(v, grid) * self.it.factors.vm_normalization;
         }
         l
     }
@@ -236,11 +234,11 @@ impl CameraPass<'_> {
 
     /// Merging: every light vertex within the radius, as if it had arrived here (before the
     /// normalisation by the disc and the light path count).
-    fn merge(&self, v: &Vertex, tree: &KdTree<LightVertex>) -> Rgb {
+    fn merge(&self, v: &Vertex, grid: &RangeGrid<LightVertex>) -> Rgb {
         let it = self.it;
         let survive = v.survive;
         let mut sum = Rgb::ZERO;
-        tree.within(v.sp.p, self.r2, &mut |x: &LightVertex, _, _| {
+        grid.within(v.sp.p, &mut |x: &LightVertex, _| {
             if x.len + v.len > it.max_depth + 1 {
                 return;
             }

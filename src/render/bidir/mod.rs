@@ -31,7 +31,7 @@ use crate::render::effects::Analysis;
 use crate::render::film::{Image, render_film};
 use crate::render::light::LightPicker;
 use crate::render::outcome::RenderError;
-use crate::render::photon::{KdTree, PhotonMaps};
+use crate::render::photon::{PhotonMaps, RangeGrid};
 use crate::render::ppm::PpmState;
 use crate::render::progressive::{PassAt, PassOutput, PassResult, Progression};
 use crate::render::sampling::{Sampler, Stream};
@@ -41,7 +41,7 @@ use crate::spec::{EffectSwitches, RenderSpec};
 
 use camera_paths::CameraPass;
 use light_paths::{LightPaths, trace_light_paths};
-use vertex::{Factors, LightVertex};
+use vertex::Factors;
 use weights::{Technique, weight};
 
 /// Which techniques an integrator of the family counts.
@@ -188,15 +188,15 @@ impl<'a> BidirPasses<'a> {
         } else {
             LightPaths::empty(&it.camera)
         };
-        let tree = self
-            .modes
-            .merges()
-            .then(|| KdTree::<LightVertex>::build(lights.vertices.clone()));
+        // No grid without a light vertex: then nothing is merged.
+        let grid = match self.modes.merges() {
+            true => RangeGrid::build(&lights.vertices, r2),
+            false => None,
+        };
         let pass = CameraPass {
             it: &it,
             lights: &lights,
-            tree: tree.as_ref(),
-            r2,
+            grid: grid.as_ref(),
         };
         let film = render_film(&pass, &it.camera, 1, control)?;
         let mut image = film.image;

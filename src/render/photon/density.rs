@@ -11,7 +11,7 @@
 use glam::Vec3A;
 
 use super::estimate::NORMAL_COS;
-use super::{CausticLookup, ClassMask, IrradianceCache, KnnScratch, OccupancyGrid, PhotonMap};
+use super::{CausticLookup, ClassMask, IrradianceCache, KnnScratch, Photon, PhotonMap, RangeGrid};
 use crate::render::math::Rgb;
 
 /// Per-thread scratch memory of the estimators.
@@ -49,11 +49,12 @@ impl Density<'_> {
 }
 
 /// Fixed-radius irradiance: E = sum phi_p / (pi r^2) over the photons within r (of the
-/// query's side and orientation, as in the k-NN estimate). An occupancy grid skips queries
-/// where no photon lies within reach.
+/// query's side and orientation, as in the k-NN estimate). The photons are searched in a
+/// hashed grid built for the pass's radius (`range_grid.rs`); the tree only where there is
+/// no grid (no photon, or a radius of zero, where the estimate is zero anyway).
 pub struct RadiusLookup<'a> {
     map: &'a PhotonMap,
-    grid: Option<OccupancyGrid>,
+    grid: Option<RangeGrid<Photon>>,
     r2: f32,
     /// unit / (pi r^2): a photon's relative power to irradiance.
     scale: f32,
@@ -64,7 +65,7 @@ impl<'a> RadiusLookup<'a> {
         let r2 = radius * radius;
         RadiusLookup {
             map,
-            grid: OccupancyGrid::build(map, radius),
+            grid: RangeGrid::build(map.tree.items(), r2),
             r2,
             scale: map.unit / (std::f32::consts::PI * r2),
         }
@@ -72,16 +73,21 @@ impl<'a> RadiusLookup<'a> {
 
     #[inline]
     pub fn irradiance(&self, p: Vec3A, n_side: Vec3A, classes: ClassMask) -> Rgb {
-        if !(self.r2 > 0.0) || self.grid.as_ref().is_some_and(|g| !g.maybe_occupied(p)) {
+        if !(self.r2 > 0.0) {
             return Rgb::ZERO;
         }
-        // The tree is visited in a fixed order, so this f32 sum is the same on every run.
+        // The grid and the tree visit their photons in a fixed order, so this f32 sum is the
+        // same on every run.
         let mut sum = Rgb::ZERO;
-        self.map.tree.within(p, self.r2, &mut |ph, _, _| {
+        let mut add = |ph: &Photon| {
             if classes.contains(ph.class()) && ph.normal().dot(n_side) > NORMAL_COS {
                 sum += ph.relative_power();
             }
-        });
+        };
+        match &self.grid {
+            Some(g) => g.within(p, &mut |ph, _| add(ph)),
+            None => self.map.tree.within(p, self.r2, &mut |ph, _, _| add(ph)),
+        }
         sum * self.scale
     }
 }

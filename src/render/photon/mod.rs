@@ -13,6 +13,7 @@ mod kdtree;
 mod occupancy;
 mod path;
 mod point_grid;
+mod range_grid;
 mod targets;
 #[cfg(test)]
 mod test_points;
@@ -23,6 +24,7 @@ pub use estimate::{CausticLookup, Query, RadianceEstimate, caustic_irradiance, i
 pub use irradiance::IrradianceCache;
 pub use kdtree::{KdItem, KdTree, KnnScratch};
 pub use occupancy::OccupancyGrid;
+pub use range_grid::RangeGrid;
 pub use targets::{CausticTargets, TargetedDirection};
 pub use trace::{PhotonParams, PhotonStore, TraceOutput, build_photon_maps};
 

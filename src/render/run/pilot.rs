@@ -47,10 +47,11 @@ use crate::spec::{Integrator, Passes, RenderSpec, Stop};
 const BOUNCE_FINDS_THE_LIGHT: f64 = 1.8 * 1.7;
 
 /// About how many times a `bdpt` pass's time a pass of `auto`'s gathering takes (one
-/// sample and its gather rays a pixel, and the pass's photons): 1.95 on cornell_spheres,
-/// 2.4 on cornell, 3.3 on tests/bidir.rs's `WALL_WASH` at 256x256
-/// (docs/performance-history.md, "auto's gathering pilot").
-const GATHERING_PASS_COST: f64 = 2.5;
+/// sample and its gather rays a pixel, and the pass's photons): 1.64 on cornell_spheres,
+/// 2.15 on cornell, 2.08 on tests/bidir.rs's `WALL_WASH` at 256x256, since its density
+/// estimates search a hashed grid (docs/performance-history.md, "ppm's range search in a
+/// hashed grid").
+const GATHERING_PASS_COST: f64 = 2.0;
 
 /// Pixels of a pilot image (its aspect the camera's).
 const PILOT_PIXELS: f64 = 2304.0;
