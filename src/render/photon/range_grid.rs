@@ -55,6 +55,12 @@ impl<T: KdItem> RangeGrid<T> {
     /// The points with a finite position, hashed by cells for searches of radius
     /// sqrt(`r2`). None if there are none, or the radius is not positive and finite.
     pub fn build(points: &[T], r2: f32) -> Option<RangeGrid<T>> {
+        Self::with_cells(points, r2, CELL_REACHES)
+    }
+
+    /// [`RangeGrid::build`] with cells `cell_reaches` times the search's reach wide (the
+    /// tests take narrower ones, whose rows span three cells).
+    fn with_cells(points: &[T], r2: f32, cell_reaches: f32) -> Option<RangeGrid<T>> {
         let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
         for p in points
             .iter()
@@ -71,7 +77,7 @@ impl<T: KdItem> RangeGrid<T> {
         // A few ulps of the largest coordinate, and a hair of the radius.
         let margin = lo.abs().max(hi.abs()).max_element() * 1e-6 + r * 1e-4;
         let reach = r + margin;
-        let cell = CELL_REACHES * reach;
+        let cell = cell_reaches * reach;
         let buckets = points.len().next_power_of_two().clamp(1, 1 << 30);
         let mut grid = RangeGrid {
             origin: lo,
@@ -88,10 +94,8 @@ impl<T: KdItem> RangeGrid<T> {
             .map(|p| {
                 let p = p.position();
                 if p.is_finite() {
-                    {
-                        let c = grid.cell_of(p);
-                        grid.bucket(grid.row(c.y, c.z), c.x)
-                    }
+                    let c = grid.cell_of(p);
+                    grid.bucket(grid.row(c.y, c.z), c.x)
                 } else {
                     u32::MAX
                 }
@@ -137,7 +141,9 @@ impl<T: KdItem> RangeGrid<T> {
                 let row = self.row(y, z);
                 let (b0, b1) = (self.bucket(row, lo.x), self.bucket(row, hi.x));
                 let run = (b0, b1);
-                if b0 <= b1 && !read[..n].iter().any(|&(a, z)| a <= b1 && b0 <= z) {
+                let cells = hi.x.wrapping_sub(lo.x) as u32;
+                let contiguous = b0.wrapping_add(cells) == b1 && b0 <= b1;
+                if contiguous && !read[..n].iter().any(|&(a, z)| a <= b1 && b0 <= z) {
                     // The usual case: the row's cells are one run of buckets, and so one
                     // run of points.
                     self.scan(b0..b1 + 1, q, visit);
@@ -147,7 +153,8 @@ impl<T: KdItem> RangeGrid<T> {
                     }
                     continue;
                 }
-                // The row wraps around the table, or shares buckets with another row.
+                // The row wraps around the table (or around it more than once, in a table of
+                // fewer buckets than the row has cells), or shares buckets with another row.
                 for x in lo.x..=hi.x {
                     let b = self.bucket(row, x);
                     if !is_read(&read[..n], b) {
@@ -162,8 +169,8 @@ impl<T: KdItem> RangeGrid<T> {
         }
     }
 
-    /// The points of bucket `b` within the radius of `q`, four squared distances at a
-    /// time (as the kd-tree's leaf scan): most lie beyond it.
+    /// The points of `buckets` (one run of points) within the radius of `q`, four squared
+    /// distances at a time (as the kd-tree's leaf scan): most lie beyond it.
     #[inline(always)]
     fn scan(&self, buckets: Range<u32>, q: Vec3A, visit: &mut impl FnMut(&T, f32)) {
         let run = self.starts[buckets.start as usize] as usize
@@ -193,13 +200,16 @@ impl<T: KdItem> RangeGrid<T> {
         ((p - self.origin) * self.inv_cell).floor().as_ivec3()
     }
 
-    /// The bucket of cell `c` (Teschner et al. 2003, "Optimized Spatial Hashing for
-    /// Collision Detection of Deformable Objects": three large primes, xor).
+    /// The hash of the row of cells (., `y`, `z`) along x (after Teschner et al. 2003,
+    /// "Optimized Spatial Hashing for Collision Detection of Deformable Objects": large
+    /// primes, xor).
     #[inline(always)]
     fn row(&self, y: i32, z: i32) -> u32 {
         (y as u32).wrapping_mul(19_349_663) ^ (z as u32).wrapping_mul(83_492_791)
     }
 
+    /// The bucket of cell `x` of a row: consecutive cells, consecutive buckets (but where
+    /// the row wraps around the table).
     #[inline(always)]
     fn bucket(&self, row: u32, x: i32) -> u32 {
         row.wrapping_add(x as u32) & self.mask
@@ -210,7 +220,7 @@ impl<T: KdItem> RangeGrid<T> {
 mod tests {
     use glam::Vec3A;
 
-    use super::RangeGrid;
+    use super::{CELL_REACHES, RangeGrid};
     use crate::render::photon::test_points::{P, lattice, on_planes};
     use crate::render::sampling::{Sampler, Stream};
 
@@ -243,14 +253,22 @@ mod tests {
         qs
     }
 
+    /// The grid as built, and with cells so narrow that a row of the ball's box spans three.
+    fn grids(points: &[P], r2: f32) -> Vec<RangeGrid<P>> {
+        [CELL_REACHES, 1.0, 1.5]
+            .map(|c| RangeGrid::with_cells(points, r2, c).unwrap())
+            .into()
+    }
+
     #[test]
     fn range_searches_match_brute_force() {
         let pts = on_planes(3000, 5);
         for r in [0.003f32, 0.02, 0.07, 0.3, 2.0] {
-            let grid = RangeGrid::build(&pts, r * r).unwrap();
-            assert_eq!(grid.len(), pts.len());
-            for q in queries(&pts, 9) {
-                assert_eq!(visited(&grid, q), brute(&pts, q, r * r), "r {r}, q {q}");
+            for grid in grids(&pts, r * r) {
+                assert_eq!(grid.len(), pts.len());
+                for q in queries(&pts, 9) {
+                    assert_eq!(visited(&grid, q), brute(&pts, q, r * r), "r {r}, q {q}");
+                }
             }
         }
     }
@@ -262,10 +280,11 @@ mod tests {
         for offset in [0.0f32, -3.5, 1.0e4] {
             let pts = lattice(offset);
             for r in [1.0f32, 1.5, 2.0] {
-                let grid = RangeGrid::build(&pts, r * r).unwrap();
-                for p in pts.iter().step_by(13) {
-                    let q = p.p + Vec3A::new(0.0, 0.5, 0.0) * (offset == 0.0) as u8 as f32;
-                    assert_eq!(visited(&grid, q), brute(&pts, q, r * r), "r {r}, q {q}");
+                for grid in grids(&pts, r * r) {
+                    for p in pts.iter().step_by(13) {
+                        let q = p.p + Vec3A::new(0.0, 0.5, 0.0) * (offset == 0.0) as u8 as f32;
+                        assert_eq!(visited(&grid, q), brute(&pts, q, r * r), "r {r}, q {q}");
+                    }
                 }
             }
         }
@@ -282,9 +301,10 @@ mod tests {
                     id: i as u32,
                 })
                 .collect();
-            let grid = RangeGrid::build(&pts, 0.5 * 0.5).unwrap();
-            for q in queries(&pts, 3) {
-                assert_eq!(visited(&grid, q), brute(&pts, q, 0.25), "n {n}, q {q}");
+            for grid in grids(&pts, 0.5 * 0.5) {
+                for q in queries(&pts, 3) {
+                    assert_eq!(visited(&grid, q), brute(&pts, q, 0.25), "n {n}, q {q}");
+                }
             }
         }
     }
