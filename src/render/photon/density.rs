@@ -50,8 +50,8 @@ impl Density<'_> {
 
 /// Fixed-radius irradiance: E = sum phi_p / (pi r^2) over the photons within r (of the
 /// query's side and orientation, as in the k-NN estimate). The photons are searched in a
-/// hashed grid built for the pass's radius (`range_grid.rs`); the tree only where there is
-/// no grid (no photon, or a radius of zero, where the estimate is zero anyway).
+/// hashed grid built for the pass's radius (`range_grid.rs`); the tree only where no grid
+/// could be built: an empty map, or a radius too large for f32 (every photon is within).
 pub struct RadiusLookup<'a> {
     map: &'a PhotonMap,
     grid: Option<RangeGrid<Photon>>,

@@ -85,38 +85,37 @@ impl<T: KdItem> RangeGrid<T> {
             reach,
             r2,
             mask: buckets as u32 - 1,
-            starts: vec![0; buckets + 1],
+            starts: Vec::new(),
             points: Vec::new(),
         };
-        // Counting sort by bucket (u32::MAX: left out).
-        let bucket_of: Vec<u32> = points
-            .iter()
-            .map(|p| {
-                let p = p.position();
-                if p.is_finite() {
-                    let c = grid.cell_of(p);
-                    grid.bucket(grid.row(c.y, c.z), c.x)
-                } else {
-                    u32::MAX
-                }
+        // Counting sort by bucket, stable, with no buffer beside the table and the sorted
+        // points (so that a pass holds its map about twice, as `Needs` counts it): the
+        // buckets are computed twice, once to count and once to place.
+        let bucket_of = |p: &T| {
+            let p = p.position();
+            p.is_finite().then(|| {
+                let c = grid.cell_of(p);
+                grid.bucket(grid.row(c.y, c.z), c.x) as usize
             })
-            .collect();
-        for &b in bucket_of.iter().filter(|&&b| b != u32::MAX) {
-            grid.starts[b as usize + 1] += 1;
+        };
+        let mut ends = vec![0u32; buckets + 1];
+        for b in points.iter().filter_map(bucket_of) {
+            ends[b] += 1;
         }
-        for b in 1..grid.starts.len() {
-            grid.starts[b] += grid.starts[b - 1];
+        for b in 1..buckets {
+            ends[b] += ends[b - 1];
         }
-        let mut next = grid.starts.clone();
-        let mut sorted = vec![points[0]; grid.starts[buckets] as usize];
-        for (p, &b) in points
-            .iter()
-            .zip(&bucket_of)
-            .filter(|&(_, &b)| b != u32::MAX)
-        {
-            sorted[next[b as usize] as usize] = *p;
-            next[b as usize] += 1;
+        let kept = ends[buckets - 1];
+        ends[buckets] = kept;
+        // Placed from the last point back, each bucket's end moves down to its start.
+        let mut sorted = vec![points[0]; kept as usize];
+        for p in points.iter().rev() {
+            if let Some(b) = bucket_of(p) {
+                ends[b] -= 1;
+                sorted[ends[b] as usize] = *p;
+            }
         }
+        grid.starts = ends;
         grid.points = sorted;
         Some(grid)
     }

@@ -26,7 +26,8 @@ impl Needs {
     ///
     /// Memory: photons while traced and in their kd-trees (a global photon path stores at
     /// most a few photons: 3 per emitted photon bounds the built-in scenes' 1.35 with
-    /// room), twice while traced (per-chunk buffers, then the map); the irradiance cache;
+    /// room), twice while traced (per-chunk buffers, then the map) and while a ppm pass
+    /// searches them (the map, and its range grid's copy and table); the irradiance cache;
     /// the film and its encodings, 48 bytes a pixel, and (progressive) the exact sum (48),
     /// a pass's image and the saved state's buffer (48), 48 + 96 bytes a pixel; the scene's description, primitives and BVH build,
     /// 1,200 bytes a triangle. The per-pixel and per-triangle figures are measured on the
