@@ -1,7 +1,32 @@
 //! A box of cubic cells over a set of points, numbered x fastest: the layout shared by the
-//! occupancy grid (a bit per cell) and the point grid (its points sorted by cell).
+//! occupancy grid (a bit per cell) and the point grid (its points sorted by cell); and the
+//! box and rounding margin every grid here (the range grid's hashed cells too) starts from.
 
 use glam::{UVec3, Vec3A};
+
+use super::KdItem;
+
+/// The box (lo, hi) of the points at a finite position: None if there is none, or if the
+/// box is too large for f32 (beyond any scene the loader accepts).
+pub(super) fn finite_bounds<T: KdItem>(points: &[T]) -> Option<(Vec3A, Vec3A)> {
+    let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+    for p in points
+        .iter()
+        .map(KdItem::position)
+        .filter(|p| p.is_finite())
+    {
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    (hi - lo).is_finite().then_some((lo, hi))
+}
+
+/// Slack for a search box's bounds over the box `lo..=hi`, so that the rounding of one
+/// addition never leaves a point's cell out: a few ulps of the largest coordinate, and a
+/// hair of `width` (a cell's, or the search radius).
+pub(super) fn rounding_margin(lo: Vec3A, hi: Vec3A, width: f32) -> f32 {
+    lo.abs().max(hi.abs()).max_element() * 1e-6 + width * 1e-4
+}
 
 #[derive(Clone, Debug)]
 pub(super) struct Cells {

@@ -6,7 +6,7 @@
 
 use glam::{IVec3, Vec3A};
 
-use super::cells::Cells;
+use super::cells::{Cells, finite_bounds};
 use super::{KdItem, PhotonMap};
 
 /// The number of cells is capped so that the grid stays small (at most 2^21 bits = 256 KiB).
@@ -24,15 +24,7 @@ impl OccupancyGrid {
         if items.is_empty() || !(radius > 0.0 && radius.is_finite()) {
             return None;
         }
-        let mut lo = Vec3A::splat(f32::INFINITY);
-        let mut hi = Vec3A::splat(f32::NEG_INFINITY);
-        for p in items {
-            lo = lo.min(p.position());
-            hi = hi.max(p.position());
-        }
-        if !(hi - lo).is_finite() {
-            return None;
-        }
+        let (lo, hi) = finite_bounds(items)?;
         // Cells a hair wider than the radius, so that rounding can never put a photon and a
         // query within the radius two cells apart; two spare cells on each side for the
         // dilation and for a query within the radius of the outermost photons.

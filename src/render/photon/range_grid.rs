@@ -24,6 +24,7 @@ use std::ops::Range;
 use glam::{IVec3, Vec3A, Vec4};
 
 use super::KdItem;
+use super::cells::{finite_bounds, rounding_margin};
 use super::kdtree::{distances4, within4};
 
 /// The most bucket runs one query reads: a box of 3 x 3 cells across x (one or two along an
@@ -61,22 +62,12 @@ impl<T: KdItem> RangeGrid<T> {
     /// [`RangeGrid::build`] with cells `cell_reaches` times the search's reach wide (the
     /// tests take narrower ones, whose rows span three cells).
     fn with_cells(points: &[T], r2: f32, cell_reaches: f32) -> Option<RangeGrid<T>> {
-        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
-        for p in points
-            .iter()
-            .map(KdItem::position)
-            .filter(|p| p.is_finite())
-        {
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
+        let (lo, hi) = finite_bounds(points)?;
         let r = r2.sqrt();
-        if !(r > 0.0 && r.is_finite() && (hi - lo).is_finite()) {
+        if !(r > 0.0 && r.is_finite()) {
             return None;
         }
-        // A few ulps of the largest coordinate, and a hair of the radius.
-        let margin = lo.abs().max(hi.abs()).max_element() * 1e-6 + r * 1e-4;
-        let reach = r + margin;
+        let reach = r + rounding_margin(lo, hi, r);
         let cell = cell_reaches * reach;
         let buckets = points.len().next_power_of_two().clamp(1, 1 << 30);
         let mut grid = RangeGrid {

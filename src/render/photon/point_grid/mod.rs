@@ -20,7 +20,7 @@ use std::ops::Range;
 
 use glam::{IVec3, UVec3, Vec3A};
 
-use super::cells::Cells;
+use super::cells::{Cells, finite_bounds, rounding_margin};
 
 use super::KdItem;
 use super::kdtree::{distances4, offer_k_best, within4};
@@ -59,19 +59,8 @@ impl<T: KdItem> PointGrid<T> {
     /// position are left out (no search's bound can hold them). None without any other, or
     /// if their box is too large for f32 (beyond any scene the loader accepts).
     pub fn build(points: &[T], cell: Option<f32>) -> Option<PointGrid<T>> {
-        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
-        for p in points
-            .iter()
-            .map(KdItem::position)
-            .filter(|p| p.is_finite())
-        {
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
+        let (lo, hi) = finite_bounds(points)?;
         let size = hi - lo;
-        if !size.is_finite() {
-            return None;
-        }
         // Points per unit area, taking them to cover the box's surface (as on a room's
         // walls): the mean spacing is then 1 / sqrt(density). A wrong guess costs speed
         // only.
@@ -83,8 +72,7 @@ impl<T: KdItem> PointGrid<T> {
             _ => size.max_element().max(1.0),
         };
         let cells = Cells::cover(lo, hi, cell, 0, MAX_CELLS);
-        // A few ulps of the largest coordinate, and a hair of a cell.
-        let margin = lo.abs().max(hi.abs()).max_element() * 1e-6 + cells.width() * 1e-4;
+        let margin = rounding_margin(lo, hi, cells.width());
         // Counting sort by cell (u32::MAX: left out).
         let cell_of = |p: Vec3A| match p.is_finite() {
             true => cells.index(cells.clamped(p)),
