@@ -83,6 +83,7 @@ pub(crate) fn render_with_maps(
         caustic,
         global: cache.as_ref().map(Density::Cached),
         gather_rays,
+        near_gather: 0.0,
         max_depth: spec.max_depth,
         control: *control,
         samples: Samples {

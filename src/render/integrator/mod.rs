@@ -20,7 +20,9 @@
 //! counts only where nothing else accounts for it: always on camera paths; for glossy rays
 //! only through a mirror or glass when shadow rays sampled the light directly; never for
 //! gather rays (a light seen from x, even through specular surfaces, is direct light or a
-//! caustic).
+//! caustic). A gather hit y nearer x than a few of ppm's radii reads no Indirect photons:
+//! its indirect light is one more cosine-sampled ray, whose end is shaded as a gather hit
+//! (`gather_near`), because there the map's blur would be seen (`ppm/passes.rs`).
 
 mod shade;
 
@@ -40,6 +42,9 @@ pub struct VertexPlan {
     pub global: ClassMask,
     /// Final gathering over the hemisphere.
     pub gather: bool,
+    /// Indirect light by one more cosine-sampled ray, whose end is shaded as a final-gather
+    /// hit: at gather hits too near their gather point for the global map's blur.
+    pub bounce: bool,
     /// Trace the glossy lobe of Phong materials.
     pub glossy_rays: bool,
 }
@@ -50,17 +55,21 @@ impl VertexPlan {
         caustic_map: false,
         global: ClassMask::NONE,
         gather: false,
+        bounce: false,
         glossy_rays: false,
     };
 }
 
 /// What one render reads at the first non-specular vertex of a camera path (`primary`), at a
-/// vertex reached by a glossy ray from another (`secondary`), and at final-gather hits.
+/// vertex reached by a glossy ray from another (`secondary`), at final-gather hits, and at
+/// final-gather hits nearer their gather point than the shader's `near_gather` distance
+/// (`gather_near`: the global map's indirect light there is replaced by one more bounce).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Plan {
     pub primary: VertexPlan,
     pub secondary: VertexPlan,
     pub gather_hit: VertexPlan,
+    pub gather_near: VertexPlan,
 }
 
 impl Plan {
@@ -84,18 +93,23 @@ impl Plan {
                 caustic_map: v.caustic_map && e.caustics,
                 global: ClassMask(global),
                 gather: v.gather && e.diffuse_interreflection,
+                bounce: v.bounce && e.diffuse_interreflection,
                 glossy_rays: v.glossy_rays,
             }
         };
         let (primary, secondary) = (apply(self.primary), apply(self.secondary));
+        let gathered = |v: VertexPlan| {
+            if primary.gather {
+                v
+            } else {
+                VertexPlan::NOTHING
+            }
+        };
         Plan {
             primary,
             secondary,
-            gather_hit: if primary.gather {
-                self.gather_hit
-            } else {
-                VertexPlan::NOTHING
-            },
+            gather_hit: gathered(self.gather_hit),
+            gather_near: gathered(self.gather_near),
         }
     }
 
@@ -108,6 +122,7 @@ impl Plan {
             primary: v,
             secondary: v,
             gather_hit: nothing,
+            gather_near: nothing,
         };
         match spec.photon_mapping() {
             None => only(VertexPlan {
@@ -131,6 +146,7 @@ impl Plan {
                     caustic_map: true,
                     global: read(&[Indirect]),
                     gather: false,
+                    bounce: false,
                     glossy_rays: true,
                 };
                 let gather = p.gather_rays > 0;
@@ -143,27 +159,39 @@ impl Plan {
                 } else {
                     secondary
                 };
-                let gather_hit = if gather {
-                    VertexPlan {
+                let (gather_hit, gather_near) = if gather {
+                    let hit = VertexPlan {
                         shadow_rays: indirect,
                         global: read(&[Caustic, Indirect]),
                         glossy_rays: true,
                         ..nothing
-                    }
+                    };
+                    let near = VertexPlan {
+                        global: read(&[Caustic]),
+                        bounce: true,
+                        ..hit
+                    };
+                    (hit, near)
                 } else {
-                    nothing
+                    (nothing, nothing)
                 };
                 Plan {
                     primary,
                     secondary,
                     gather_hit,
+                    gather_near,
                 }
             }
         }
     }
 
-    fn vertices(&self) -> [VertexPlan; 3] {
-        [self.primary, self.secondary, self.gather_hit]
+    fn vertices(&self) -> [VertexPlan; 4] {
+        [
+            self.primary,
+            self.secondary,
+            self.gather_hit,
+            self.gather_near,
+        ]
     }
 
     /// The global-map classes any vertex reads: what the irradiance cache must hold.

@@ -26,6 +26,8 @@ pub struct Shader<'a> {
     pub caustic: Option<Density<'a>>,
     pub global: Option<Density<'a>>,
     pub gather_rays: u32,
+    /// Gather rays that end nearer than this are shaded by `plan.gather_near` (0: none).
+    pub near_gather: f32,
     pub max_depth: u32,
     /// Read within long final gathers (see [`GATHER_CHECK`]).
     pub control: Control<'a>,
@@ -76,6 +78,8 @@ struct Segment<'p> {
     vertex: &'p VertexPlan,
     /// Split at glass into both branches (only on the camera's own specular chain).
     split: bool,
+    /// A non-specular hit nearer than this is shaded by `plan.gather_near` (gather rays).
+    near: f32,
 }
 
 impl<'p> Segment<'p> {
@@ -100,6 +104,7 @@ impl Shader<'_> {
             emission: Emission::Count,
             vertex: &self.plan.primary,
             split: true,
+            near: 0.0,
         };
         self.trace(ray, seg, s, scratch)
     }
@@ -119,6 +124,12 @@ impl Shader<'_> {
                 let m = &self.scene.materials[mi as usize];
                 if m.is_specular() {
                     self.specular(m, &hit, wo, seg, s, scratch)
+                } else if hit.t < seg.near {
+                    let near = Segment {
+                        vertex: &self.plan.gather_near,
+                        ..seg
+                    };
+                    self.non_specular(m, &hit.point, wo, near, s, scratch)
                 } else {
                     self.non_specular(m, &hit.point, wo, seg, s, scratch)
                 }
@@ -196,6 +207,9 @@ impl Shader<'_> {
             if vertex.gather {
                 l += rho * self.final_gather(sp, n_side, seg.depth, s, scratch);
             }
+            if vertex.bounce {
+                l += rho * self.bounce(sp, n_side, seg.depth, s, scratch);
+            }
         }
         if vertex.glossy_rays {
             l += self.glossy(m, sp, wo, n_side, seg, s, scratch);
@@ -242,6 +256,7 @@ impl Shader<'_> {
             },
             vertex: &self.plan.secondary,
             split: false,
+            near: 0.0,
         };
         weight * self.trace(&spawn_ray(sp, wi), next, s, scratch)
     }
@@ -282,12 +297,7 @@ impl Shader<'_> {
         scratch: &mut Scratch,
     ) -> Rgb {
         let frame = Frame::from_normal(n_side);
-        let seg = Segment {
-            depth: depth + 1,
-            emission: Emission::Never,
-            vertex: &self.plan.gather_hit,
-            split: false,
-        };
+        let seg = self.gather_segment(depth);
         let mut sum = Rgb::ZERO;
         for i in 0..self.gather_rays {
             // Cut short when cancelled: `render_film` checks the flag after the sample and
@@ -300,5 +310,35 @@ impl Shader<'_> {
             sum += self.trace(&spawn_ray(sp, wi), seg, &mut b, scratch);
         }
         sum / self.gather_rays as f32
+    }
+
+    /// A gather ray's segment from a vertex at `depth`.
+    fn gather_segment(&self, depth: u32) -> Segment<'_> {
+        Segment {
+            depth: depth + 1,
+            emission: Emission::Never,
+            vertex: &self.plan.gather_hit,
+            split: false,
+            near: self.near_gather,
+        }
+    }
+
+    /// Indirect light at a gather hit too near its gather point for the global map (the
+    /// map's blur, its radius, would be seen there: a corner's edges darkened, as Jensen
+    /// 2001, section 9.1.4, notes of short gather rays): the mean radiance over the
+    /// hemisphere by one cosine-sampled ray, whose end is shaded as a gather hit.
+    fn bounce(
+        &self,
+        sp: &SurfacePoint,
+        n_side: Vec3A,
+        depth: u32,
+        s: &mut Sampler,
+        scratch: &mut Scratch,
+    ) -> Rgb {
+        if depth + 1 >= self.max_depth {
+            return Rgb::ZERO;
+        }
+        let wi = Frame::from_normal(n_side).to_world(cosine_hemisphere(s.next_2d()));
+        self.trace(&spawn_ray(sp, wi), self.gather_segment(depth), s, scratch)
     }
 }
