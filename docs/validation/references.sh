@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Render the Mitsuba 3 references for docs/validation.md (../shared/refcheck, path tracing).
-#   docs/validation/references.sh [OUT_DIR]      (default target/refs; about 40 minutes on 2 cores)
+#   docs/validation/references.sh [OUT_DIR]      (default target/refs; about an hour on 2 cores)
 # For each scene: two independent references (seeds 1 and 2), their comparison (the
 # reference's own noise floor), and their mean (the reference used).
 set -euo pipefail
@@ -10,13 +10,14 @@ mkdir -p "$OUT"
 REF=../shared/refcheck
 PY="${REFCHECK_VENV:-$HOME/.cache/refcheck-venv}/bin/python"
 W=256; H=256
-# scene file : samples per pixel per seed
+# scene file : samples per pixel per seed (the rooms' 8,192 since 2026-12-05: with 1,024, at
+# 16 s and beyond the references' own noise was much of what the race measured)
 SCENES=(
   "scenes/twins/cornell_mirror_glass_twin.json:4096"
   "scenes/twins/glass_orange_twin.json:16384"
-  "scenes/cornell_spheres.json:1024"
-  "scenes/cornell.json:1024"
-  "scenes/knot.json:1024"
+  "scenes/cornell_spheres.json:8192"
+  "scenes/cornell.json:8192"
+  "scenes/knot.json:8192"
 )
 for entry in "${SCENES[@]}"; do
   scene="${entry%%:*}"; spp="${entry##*:}"
