@@ -471,12 +471,14 @@ const CUBE_CORNER: &str = r#"{
     "lights": [{"type": "point", "position": [0, 0, 0], "power": [10, 10, 10]}]
 }"#;
 
-/// Near a concave edge a density estimate's disc reaches past its wall and counts too few
-/// photons, and a gather ray from beside the edge lands there, a few radii away: gathering
-/// must not show that loss. ppm with final gathering and a large radius (0.15, on walls 2
-/// wide) against `pt`, in 6x6-pixel blocks: the edge blocks are as bright as the rest (the
-/// spread of the blocks' ratios to `pt` was 0.019-0.022 when the map was read at every
-/// gather hit, 0.0058 when the hits within 4 radii bounce once more).
+/// Near an edge a density estimate's disc reaches past its wall and counts too few photons.
+/// A gather ray from beside the edge lands there, a few radii away, and shows that loss
+/// undiluted; gather rays from across the room land there too. ppm with final gathering and
+/// a large radius (0.15, on walls 2 wide) against `pt`, in 6x6-pixel blocks: every block
+/// within 0.6% of `pt`'s, the edges' as bright as the rest. Measured (three seeds): with the
+/// map read at every gather hit, blocks about 0.975 to 0.997 of `pt`'s; with the hits within
+/// 4 radii bouncing once more, 0.989 to 0.997 (the far walls' edges still dark); with the
+/// hits within a radius of their quad's edges bouncing too, 0.998 to 1.002.
 #[test]
 fn gathering_keeps_a_corners_edges_as_bright_as_a_path_tracer() {
     let s = scene(CUBE_CORNER);
@@ -507,10 +509,8 @@ fn gathering_keeps_a_corners_edges_as_bright_as_a_path_tracer() {
         .iter()
         .fold((f64::MAX, f64::MIN), |(lo, hi), &r| (lo.min(r), hi.max(r)));
     eprintln!("cube corner, gathering over pt by 6x6 blocks: {lo:.4} to {hi:.4}");
-    assert!(hi - lo < 0.012, "blocks from {lo:.4} to {hi:.4} of pt's");
-    // The radius's blur darkens the walls' middles a little (0.3-0.6%).
     assert!(
-        lo > 0.98 && hi < 1.02,
+        lo > 0.994 && hi < 1.006,
         "blocks from {lo:.4} to {hi:.4} of pt's"
     );
 }

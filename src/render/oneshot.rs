@@ -84,6 +84,7 @@ pub(crate) fn render_with_maps(
         global: cache.as_ref().map(Density::Cached),
         gather_rays,
         near_gather: 0.0,
+        edge_reach: 0.0,
         max_depth: spec.max_depth,
         control: *control,
         samples: Samples {

@@ -75,6 +75,20 @@ impl Shape {
         }
     }
 
+    /// Whether `p`, a point of this shape, lies within `r` of the shape's boundary, where a
+    /// disc of radius `r` about it may reach past the surface: a quad's edges. A sphere has
+    /// none; a triangle's edges are taken as shared with its mesh's neighbours.
+    pub fn near_boundary(&self, p: Vec3A, r: f32) -> bool {
+        match *self {
+            // s and t grow by |su| and |sv| per unit of distance from the edges s = 0, t = 0.
+            Shape::Quad { corner, su, sv, .. } => {
+                let (s, t) = ((p - corner).dot(su), (p - corner).dot(sv));
+                s.min(1.0 - s) < r * su.length() || t.min(1.0 - t) < r * sv.length()
+            }
+            Shape::Sphere { .. } | Shape::Triangle { .. } => false,
+        }
+    }
+
     pub fn bounds(&self) -> Aabb {
         match *self {
             Shape::Sphere { center, radius } => Aabb {
@@ -348,5 +362,27 @@ mod tests {
         r.origin_prim = NO_PRIM;
         r.o.y = -1.0;
         assert!(q.intersect(&r, 3).is_some());
+    }
+
+    /// A parallelogram's points within r of an edge, by their distance across it (not along
+    /// its parameters); a sphere has no edge.
+    #[test]
+    fn near_boundary_is_the_distance_to_a_quads_edges() {
+        let q = Shape::quad(
+            Vec3A::ZERO,
+            Vec3A::new(4.0, 0.0, 0.0),
+            Vec3A::new(1.0, 2.0, 0.0),
+        );
+        let near = |x, y| q.near_boundary(Vec3A::new(x, y, 0.0), 0.3);
+        assert!(!near(2.5, 1.0));
+        // The slanted edge x = y / 2: 0.25 across at (0.75, 1) is 0.224 away.
+        assert!(near(0.75, 1.0) && !near(0.9, 1.0));
+        assert!(near(2.5, 0.29) && !near(2.5, 0.31));
+        assert!(near(2.5, 1.71) && !near(2.5, 1.69));
+        let sphere = Shape::Sphere {
+            center: Vec3A::ZERO,
+            radius: 1.0,
+        };
+        assert!(!sphere.near_boundary(Vec3A::X, 10.0));
     }
 }

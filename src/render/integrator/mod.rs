@@ -20,9 +20,10 @@
 //! counts only where nothing else accounts for it: always on camera paths; for glossy rays
 //! only through a mirror or glass when shadow rays sampled the light directly; never for
 //! gather rays (a light seen from x, even through specular surfaces, is direct light or a
-//! caustic). A gather hit y nearer x than a few of ppm's radii reads no Indirect photons:
-//! its indirect light is one more cosine-sampled ray, whose end is shaded as a gather hit
-//! (`gather_near`), because there the map's blur would be seen (`ppm/passes.rs`).
+//! caustic). In ppm a gather hit y nearer x than a few global radii, or within one radius of
+//! its quad's edges, reads no Indirect photons: its indirect light is one more
+//! cosine-sampled ray, whose end is shaded as a gather hit (`gather_near`), because there
+//! the map's disc is seen up close or reaches past the surface (`ppm/passes.rs`).
 
 mod shade;
 
@@ -62,8 +63,8 @@ impl VertexPlan {
 
 /// What one render reads at the first non-specular vertex of a camera path (`primary`), at a
 /// vertex reached by a glossy ray from another (`secondary`), at final-gather hits, and at
-/// final-gather hits nearer their gather point than the shader's `near_gather` distance
-/// (`gather_near`: the global map's indirect light there is replaced by one more bounce).
+/// final-gather hits too near for the global map's disc (`gather_near`, by the shader's
+/// `near_gather` and `edge_reach`: the map's indirect light replaced by one more bounce).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Plan {
     pub primary: VertexPlan,

@@ -28,6 +28,9 @@ pub struct Shader<'a> {
     pub gather_rays: u32,
     /// Gather rays that end nearer than this are shaded by `plan.gather_near` (0: none).
     pub near_gather: f32,
+    /// The global map's radius: gather rays that end within it of their quad's edges are
+    /// shaded by `plan.gather_near` too (0: none).
+    pub edge_reach: f32,
     pub max_depth: u32,
     /// Read within long final gathers (see [`GATHER_CHECK`]).
     pub control: Control<'a>,
@@ -78,8 +81,9 @@ struct Segment<'p> {
     vertex: &'p VertexPlan,
     /// Split at glass into both branches (only on the camera's own specular chain).
     split: bool,
-    /// A non-specular hit nearer than this is shaded by `plan.gather_near` (gather rays).
-    near: f32,
+    /// A gather ray (or a near gather hit's bounce): its non-specular hit may be too near
+    /// for the global map ([`Shader::too_near`]).
+    gather: bool,
 }
 
 impl<'p> Segment<'p> {
@@ -104,7 +108,7 @@ impl Shader<'_> {
             emission: Emission::Count,
             vertex: &self.plan.primary,
             split: true,
-            near: 0.0,
+            gather: false,
         };
         self.trace(ray, seg, s, scratch)
     }
@@ -124,7 +128,7 @@ impl Shader<'_> {
                 let m = &self.scene.materials[mi as usize];
                 if m.is_specular() {
                     self.specular(m, &hit, wo, seg, s, scratch)
-                } else if hit.t < seg.near {
+                } else if seg.gather && self.too_near(&hit) {
                     let near = Segment {
                         vertex: &self.plan.gather_near,
                         ..seg
@@ -256,7 +260,7 @@ impl Shader<'_> {
             },
             vertex: &self.plan.secondary,
             split: false,
-            near: 0.0,
+            gather: false,
         };
         weight * self.trace(&spawn_ray(sp, wi), next, s, scratch)
     }
@@ -319,8 +323,17 @@ impl Shader<'_> {
             emission: Emission::Never,
             vertex: &self.plan.gather_hit,
             split: false,
-            near: self.near_gather,
+            gather: true,
         }
+    }
+
+    /// Whether a gather ray's hit is too near for the global map's disc there: nearer its
+    /// gather point than `near_gather`, or within `edge_reach` of its quad's edges.
+    #[inline]
+    fn too_near(&self, hit: &Hit) -> bool {
+        hit.t < self.near_gather
+            || (self.edge_reach > 0.0
+                && (self.scene).near_boundary(hit.point.prim, hit.point.p, self.edge_reach))
     }
 
     /// Indirect light at a gather hit too near its gather point for the global map (the

@@ -17,14 +17,15 @@ use crate::render::scene::Scene;
 use crate::render::stats::{RenderStats, StatsInput, collect};
 use crate::spec::{Progressive, RenderSpec};
 
-/// Gather rays that end within this many global radii of their gather point read no
-/// indirect light from the global map, but bounce once more (`integrator/shade.rs`,
-/// `gather_near`). Near its edges a density estimate's disc reaches past the surface and
-/// counts too few photons, and a short gather ray shows that loss undiluted: ppm with
-/// gathering darkened the edges of a room's corners (block_err 0.0035 on cornell after 128
-/// passes, 0.0027 with 4 radii, 0.0027 with 2 and 8; docs/performance-history.md, "near
-/// gather hits bounce once more"). The radius shrinks over the passes, and so does the
-/// share of gather rays that bounce again.
+/// Gather rays that end within this many global radii of their gather point, or within one
+/// of their quad's edges, read no indirect light from the global map but bounce once more
+/// (`integrator/shade.rs`, `gather_near`). Near an edge a density estimate's disc reaches
+/// past the surface and counts too few photons; a short gather ray shows any blur of the
+/// map undiluted, and rays from across a room land in the bands along its edges. ppm with
+/// gathering after 128 passes on cornell: block_err 0.0035 reading the map at every hit,
+/// 0.0027 with the near hits bouncing (2, 4 and 8 radii alike), 0.0023 with the quads' edges
+/// too (docs/performance-history.md, "near gather hits bounce once more"). The radius
+/// shrinks over the passes, and so does the share of gather rays that bounce again.
 const NEAR_GATHER_RADII: f32 = 4.0;
 
 /// Progressive photon mapping's passes over one scene and spec.
@@ -100,6 +101,7 @@ impl Progression for PpmPasses<'_> {
             global: lookup(&maps.global, radii.0),
             gather_rays: self.ppm.pass.gather_rays,
             near_gather: NEAR_GATHER_RADII * radii.0,
+            edge_reach: radii.0,
             max_depth: self.spec.max_depth,
             control: *control,
             // The job's sequences, continued pass after pass: a pixel's samples (and their

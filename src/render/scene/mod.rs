@@ -258,6 +258,11 @@ impl Scene {
         self.accel.prims()[prim as usize].surface
     }
 
+    /// Whether `p`, on primitive `prim`, lies within `r` of its edges (`Shape::near_boundary`).
+    pub fn near_boundary(&self, prim: PrimId, p: Vec3A, r: f32) -> bool {
+        self.accel.prims()[prim as usize].shape.near_boundary(p, r)
+    }
+
     /// The scene's length scale (see `geometry_extent`).
     pub fn extent(&self) -> f32 {
         self.geometry_extent
