@@ -44,7 +44,7 @@ pub struct VertexPlan {
     /// Final gathering over the hemisphere.
     pub gather: bool,
     /// Indirect light by one more cosine-sampled ray, whose end is shaded as a final-gather
-    /// hit: at gather hits too near their gather point for the global map's blur.
+    /// hit: at gather hits too near for the global map's disc (`Shader::too_near`).
     pub bounce: bool,
     /// Trace the glossy lobe of Phong materials.
     pub glossy_rays: bool,
