@@ -83,8 +83,6 @@ pub(crate) fn render_with_maps(
         caustic,
         global: cache.as_ref().map(Density::Cached),
         gather_rays,
-        near_gather: 0.0,
-        edge_reach: 0.0,
         max_depth: spec.max_depth,
         control: *control,
         samples: Samples {

@@ -189,9 +189,10 @@ impl<'a> BidirPasses<'a> {
             LightPaths::empty(&it.camera)
         };
         // No grid without a light vertex: then nothing is merged.
-        let grid = match self.modes.merges() {
-            true => RangeGrid::build(&lights.vertices, r2),
-            false => None,
+        let grid = if self.modes.merges() {
+            RangeGrid::build(&lights.vertices, r2)
+        } else {
+            None
         };
         let pass = CameraPass {
             it: &it,

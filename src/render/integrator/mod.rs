@@ -23,7 +23,8 @@
 //! caustic). In ppm a gather hit y nearer x than a few global radii, or within one radius of
 //! its quad's edges, reads no Indirect photons: its indirect light is one more
 //! cosine-sampled ray, whose end is shaded as a gather hit (`gather_near`), because there
-//! the map's disc is seen up close or reaches past the surface (`ppm/passes.rs`).
+//! the map's disc is seen up close or reaches past the surface (`shade.rs`,
+//! `NEAR_GATHER_RADII`).
 
 mod shade;
 
@@ -63,8 +64,8 @@ impl VertexPlan {
 
 /// What one render reads at the first non-specular vertex of a camera path (`primary`), at a
 /// vertex reached by a glossy ray from another (`secondary`), at final-gather hits, and at
-/// final-gather hits too near for the global map's disc (`gather_near`, by the shader's
-/// `near_gather` and `edge_reach`: the map's indirect light replaced by one more bounce).
+/// final-gather hits too near for a fixed-radius global map's disc (`gather_near`, by
+/// `Shader::too_near`: the map's indirect light replaced by one more bounce).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Plan {
     pub primary: VertexPlan,

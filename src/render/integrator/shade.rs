@@ -26,11 +26,6 @@ pub struct Shader<'a> {
     pub caustic: Option<Density<'a>>,
     pub global: Option<Density<'a>>,
     pub gather_rays: u32,
-    /// Gather rays that end nearer than this are shaded by `plan.gather_near` (0: none).
-    pub near_gather: f32,
-    /// The global map's radius: gather rays that end within it of their quad's edges are
-    /// shaded by `plan.gather_near` too (0: none).
-    pub edge_reach: f32,
     pub max_depth: u32,
     /// Read within long final gathers (see [`GATHER_CHECK`]).
     pub control: Control<'a>,
@@ -47,6 +42,17 @@ pub struct Samples {
     pub seed: u64,
     pub first: u64,
 }
+
+/// Gather rays that end within this many radii of a fixed-radius global map (ppm's) of
+/// their gather point, or within one of their quad's edges, read no indirect light from the
+/// map but bounce once more (`plan.gather_near`). Near an edge a density estimate's disc
+/// reaches past the surface and counts too few photons; a short gather ray shows any blur
+/// of the map undiluted, and rays from across a room land in the bands along its edges.
+/// ppm with gathering after 128 passes on cornell: block_err 0.0035 reading the map at
+/// every hit, 0.0027 with the near hits bouncing (2, 4 and 8 radii alike), 0.0023 with the
+/// quads' edges too (docs/performance-history.md, "near gather hits bounce once more"). The
+/// radius shrinks over the passes, and so does the share of gather rays that bounce again.
+const NEAR_GATHER_RADII: f32 = 4.0;
 
 /// How many bounces in a row a gather ray's hits too near for the global map may take
 /// before one reads it however near: a bound on a gather ray's rays wherever it lands
@@ -135,16 +141,17 @@ impl Shader<'_> {
             Surface::Material(mi) => {
                 let m = &self.scene.materials[mi as usize];
                 if m.is_specular() {
-                    self.specular(m, &hit, wo, seg, s, scratch)
-                } else if seg.near_bounces > 0 && self.too_near(&hit) {
-                    let near = Segment {
+                    return self.specular(m, &hit, wo, seg, s, scratch);
+                }
+                let seg = if seg.near_bounces > 0 && self.too_near(&hit) {
+                    Segment {
                         vertex: &self.plan.gather_near,
                         ..seg
-                    };
-                    self.non_specular(m, &hit.point, wo, near, s, scratch)
+                    }
                 } else {
-                    self.non_specular(m, &hit.point, wo, seg, s, scratch)
-                }
+                    seg
+                };
+                self.non_specular(m, &hit.point, wo, seg, s, scratch)
             }
         }
     }
@@ -220,8 +227,7 @@ impl Shader<'_> {
                 l += rho * self.final_gather(sp, n_side, seg.depth, s, scratch);
             }
             if vertex.bounce {
-                let more = seg.near_bounces.saturating_sub(1);
-                l += rho * self.bounce(sp, n_side, seg.depth, more, s, scratch);
+                l += rho * self.bounce(sp, n_side, seg, s, scratch);
             }
         }
         if vertex.glossy_rays {
@@ -336,13 +342,16 @@ impl Shader<'_> {
         }
     }
 
-    /// Whether a gather ray's hit is too near for the global map's disc there: nearer its
-    /// gather point than `near_gather`, or within `edge_reach` of its quad's edges.
+    /// Whether a gather ray's hit is too near for a fixed-radius global map's disc there:
+    /// nearer its gather point than [`NEAR_GATHER_RADII`] radii, or within one of its quad's
+    /// edges. Never for an adaptive (k-NN) map, whose radius varies from hit to hit.
     #[inline]
     fn too_near(&self, hit: &Hit) -> bool {
-        hit.t < self.near_gather
-            || (self.edge_reach > 0.0
-                && (self.scene).near_boundary(hit.point.prim, hit.point.p, self.edge_reach))
+        let r = match self.global.as_ref().and_then(Density::fixed_radius) {
+            Some(r) if r > 0.0 => r,
+            _ => return false,
+        };
+        hit.t < NEAR_GATHER_RADII * r || self.scene.near_boundary(hit.point.prim, hit.point.p, r)
     }
 
     /// Indirect light at a gather hit too near for the global map: seen up close, its blur
@@ -353,16 +362,15 @@ impl Shader<'_> {
         &self,
         sp: &SurfacePoint,
         n_side: Vec3A,
-        depth: u32,
-        near_bounces: u32,
+        seg: Segment,
         s: &mut Sampler,
         scratch: &mut Scratch,
     ) -> Rgb {
-        if depth + 1 >= self.max_depth {
+        if seg.depth + 1 >= self.max_depth {
             return Rgb::ZERO;
         }
         let wi = Frame::from_normal(n_side).to_world(cosine_hemisphere(s.next_2d()));
-        let seg = self.gather_segment(depth, near_bounces);
-        self.trace(&spawn_ray(sp, wi), seg, s, scratch)
+        let next = self.gather_segment(seg.depth, seg.near_bounces.saturating_sub(1));
+        self.trace(&spawn_ray(sp, wi), next, s, scratch)
     }
 }

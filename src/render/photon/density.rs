@@ -46,6 +46,15 @@ impl Density<'_> {
             Density::Radius(r) => r.irradiance(p, n_side, classes),
         }
     }
+
+    /// The radius of a fixed-radius estimate (ppm's pass radius); None for an adaptive one.
+    #[inline]
+    pub fn fixed_radius(&self) -> Option<f32> {
+        match self {
+            Density::Radius(r) => Some(r.radius),
+            Density::Knn(_) | Density::Cached(_) => None,
+        }
+    }
 }
 
 /// Fixed-radius irradiance: E = sum phi_p / (pi r^2) over the photons within r (of the
@@ -55,6 +64,7 @@ impl Density<'_> {
 pub struct RadiusLookup<'a> {
     map: &'a PhotonMap,
     grid: Option<RangeGrid<Photon>>,
+    radius: f32,
     r2: f32,
     /// unit / (pi r^2): a photon's relative power to irradiance.
     scale: f32,
@@ -66,6 +76,7 @@ impl<'a> RadiusLookup<'a> {
         RadiusLookup {
             map,
             grid: RangeGrid::build(map.tree.items(), r2),
+            radius,
             r2,
             scale: map.unit / (std::f32::consts::PI * r2),
         }

@@ -17,17 +17,6 @@ use crate::render::scene::Scene;
 use crate::render::stats::{RenderStats, StatsInput, collect};
 use crate::spec::{Progressive, RenderSpec};
 
-/// Gather rays that end within this many global radii of their gather point, or within one
-/// of their quad's edges, read no indirect light from the global map but bounce once more
-/// (`integrator/shade.rs`, `gather_near`). Near an edge a density estimate's disc reaches
-/// past the surface and counts too few photons; a short gather ray shows any blur of the
-/// map undiluted, and rays from across a room land in the bands along its edges. ppm with
-/// gathering after 128 passes on cornell: block_err 0.0035 reading the map at every hit,
-/// 0.0027 with the near hits bouncing (2, 4 and 8 radii alike), 0.0023 with the quads' edges
-/// too (docs/performance-history.md, "near gather hits bounce once more"). The radius
-/// shrinks over the passes, and so does the share of gather rays that bounce again.
-const NEAR_GATHER_RADII: f32 = 4.0;
-
 /// Progressive photon mapping's passes over one scene and spec.
 pub(crate) struct PpmPasses<'a> {
     pub scene: &'a Scene,
@@ -100,8 +89,6 @@ impl Progression for PpmPasses<'_> {
             caustic: lookup(&maps.caustic, radii.1),
             global: lookup(&maps.global, radii.0),
             gather_rays: self.ppm.pass.gather_rays,
-            near_gather: NEAR_GATHER_RADII * radii.0,
-            edge_reach: radii.0,
             max_depth: self.spec.max_depth,
             control: *control,
             // The job's sequences, continued pass after pass: a pixel's samples (and their
