@@ -68,6 +68,7 @@ impl JobRender<'_> {
             .map_err(|e| Failure::Error(format!("starting render threads: {e}")))?;
         // Building the scene (its BVH) is a phase like the others: progress, cancel.
         let scene = pool.install(|| Scene::build_with(&self.scene.desc, &control))?;
+        publish.scene_built(&scene, &self.spec.render, w as u64 * h as u64);
         let maps = CachedMaps {
             cache: &app.cache,
             scene_without_camera: &self.scene.without_camera,
@@ -168,7 +169,8 @@ impl JobRender<'_> {
 /// Publishes a job's progress: one fraction over the phases (the engine's cost model),
 /// monotone, at most every half percent or on a change of phase, with an ETA.
 struct Publisher<'a> {
-    model: ProgressModel,
+    /// The spec's model, then (once the scene is built) that of what will render it.
+    model: Mutex<ProgressModel>,
     live: &'a watch::Sender<Snapshot>,
     started: Instant,
     /// Progressive passes done (the last `passes` report).
@@ -183,13 +185,20 @@ struct Publisher<'a> {
 impl<'a> Publisher<'a> {
     fn new(spec: &crate::spec::RenderSpec, pixels: u64, live: &'a watch::Sender<Snapshot>) -> Self {
         Publisher {
-            model: ProgressModel::new(spec, pixels),
+            model: Mutex::new(ProgressModel::new(spec, pixels)),
             live,
             started: Instant::now(),
             passes: AtomicU64::new(0),
             pass_clock: Mutex::new(None),
             last: Mutex::new((0.0, None)),
         }
+    }
+
+    /// The scene is built: count progress by what will render `spec` on it (an `auto`
+    /// job's one photon render, [`ProgressModel::for_scene`]).
+    fn scene_built(&self, scene: &Scene, spec: &crate::spec::RenderSpec, pixels: u64) {
+        *self.model.lock().unwrap_or_else(|e| e.into_inner()) =
+            ProgressModel::for_scene(scene, spec, pixels);
     }
 
     /// A pass ended, `seconds` of passes in all.
@@ -211,7 +220,12 @@ impl<'a> Publisher<'a> {
             clock.get_or_insert_with(|| (0.0, Instant::now()));
         }
         let passes = self.passes.load(Ordering::Relaxed);
-        let f = self.model.fraction(p, passes, self.pass_seconds());
+        let pass_seconds = self.pass_seconds();
+        let f = (self.model.lock().unwrap_or_else(|e| e.into_inner())).fraction(
+            p,
+            passes,
+            pass_seconds,
+        );
         let f = f.clamp(0.0, 0.999);
         let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
         let phase = Some(p.phase.name());

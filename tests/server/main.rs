@@ -498,6 +498,29 @@ fn sigterm_ends_streams_and_requeues_the_running_job() {
     delete(&s, &t, id);
 }
 
+/// An `auto` job that mirror or glass and a short time limit make one photon render reports
+/// that render's phases as it goes (it reports no passes: counted by passes, it read next to
+/// nothing until it was done).
+#[test]
+fn an_auto_job_made_one_photon_render_reports_its_progress() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Server::start(dir.path(), &[]);
+    let params = json!({"integrator": "auto", "width": 64, "height": 64, "time_limit": 4});
+    let body = json!({"scene_name": "cornell_mirror_glass", "params": params});
+    let id = submit(&s, &s.admin, body);
+    let evs = follow_to_end(&s, &s.admin, id);
+    let before_done: Vec<f64> = evs
+        .iter()
+        .filter(|e| e.name == "progress" && e.data["status"] == "running")
+        .map(|e| e.data["progress"].as_f64().unwrap())
+        .collect();
+    let most = before_done.iter().copied().fold(0.0, f64::max);
+    assert!(most > 0.3, "progress while running: {before_done:?}");
+    let (_, job) = get(&s, &s.admin, &format!("/api/jobs/{id}"));
+    let how = &job["stats"]["effects"]["integrator"]["how"];
+    assert_eq!(how, "auto chose photon", "{job}");
+}
+
 /// A progressive job: a preview after each pass, then the final image; killed after some
 /// passes, it resumes from its saved state and ends with the same bytes as a job that was
 /// never interrupted (issue 4, on the server).

@@ -91,6 +91,30 @@ pub(super) fn budget_photon(passes: &Passes, pixels: u64) -> Option<PhotonMappin
     }
 }
 
+/// The one photon render `auto` chooses for `scene` with `passes` at `pixels`, if it does:
+/// mirror or glass and a short time limit alone. No pilot decides it.
+fn one_photon_render(scene: &Scene, passes: &Passes, pixels: u64) -> Option<PhotonMapping> {
+    let specular = scene.materials.iter().any(|m| m.is_specular());
+    budget_photon(passes, pixels).filter(|_| specular)
+}
+
+/// `spec` with `auto` resolved where the scene and the spec decide it alone (one photon
+/// render), else `spec` itself: what a job's progress is counted by, since the one photon
+/// render reports its phases and no passes (the pilot's choices all report passes).
+pub fn known_choice(scene: &Scene, spec: &RenderSpec) -> RenderSpec {
+    let Integrator::Auto(passes) = &spec.integrator else {
+        return spec.clone();
+    };
+    let (width, height) = spec.resolution((scene.camera.width, scene.camera.height));
+    match one_photon_render(scene, passes, width as u64 * height as u64) {
+        Some(photon) => RenderSpec {
+            integrator: Integrator::Photon(photon),
+            ..spec.clone()
+        },
+        None => spec.clone(),
+    }
+}
+
 /// The integrator for `scene` at `pixels`, with `passes` (of `spec`, whose seed, depth and
 /// switches a pilot renders with), and why.
 pub(super) fn choose(
@@ -101,8 +125,8 @@ pub(super) fn choose(
     control: &Control,
 ) -> Result<(Integrator, Effect), RenderError> {
     let specular = scene.materials.iter().any(|m| m.is_specular());
-    let (integrator, reason) = match budget_photon(passes, pixels) {
-        Some(photon) if specular => {
+    let (integrator, reason) = match one_photon_render(scene, passes, pixels) {
+        Some(photon) => {
             let reason = format!(
                 "mirror or glass and a short time limit: one photon-mapping render sized to \
                  half of it ({} photons a map, {} gather rays, {} spp) reaches a path \

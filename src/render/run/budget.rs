@@ -3,6 +3,7 @@
 //! phases (one progress fraction over a whole render).
 
 use crate::render::control::{Phase, Progress};
+use crate::render::scene::Scene;
 use crate::spec::{Integrator, RenderSpec, Stop};
 
 /// What a render needs.
@@ -175,6 +176,13 @@ impl ProgressModel {
         }
     }
 
+    /// [`ProgressModel::new`] for what will render `spec` on `scene`: an `auto` job that
+    /// the scene and spec resolve to one photon render (no pilot) counts that render's
+    /// phases; counted as `auto`, it would wait for passes it never reports.
+    pub fn for_scene(scene: &Scene, spec: &RenderSpec, pixels: u64) -> ProgressModel {
+        ProgressModel::new(&super::auto::known_choice(scene, spec), pixels)
+    }
+
     /// The fraction of the render done when a phase reports `p`, given `passes_done` (the
     /// last `Phase::Passes` report's count) and `pass_seconds`, the render's seconds of
     /// passes by now (`PpmState::elapsed`'s clock, which its time limit counts).
@@ -257,6 +265,38 @@ mod tests {
         assert!(gathering.memory_bytes > 10 << 20, "{gathering:?}");
         assert!(auto.memory_bytes >= gathering.memory_bytes, "{auto:?}");
         assert!(auto.work >= gathering.work, "{auto:?}");
+    }
+
+    /// An `auto` job that mirror or glass and a short time limit make one photon render is
+    /// as far along as that render's phases (half its camera pass: more than half done);
+    /// counted as `auto`'s passes, it read next to nothing until it ended. A room without
+    /// mirror or glass goes to the pilot's choice, which reports passes: counted as given.
+    #[test]
+    fn auto_as_one_photon_render_counts_its_phases() {
+        let until = Stop {
+            iterations: None,
+            time_limit: Some(2.0),
+            target_error: None,
+        };
+        let spec = RenderSpec::new(Integrator::Auto(crate::spec::Passes {
+            spp: 1,
+            stop: until,
+        }));
+        let half_camera = Progress {
+            phase: Phase::Render,
+            done: 1,
+            total: 2,
+        };
+        let glass = include_str!("../../../scenes/cornell_mirror_glass.json");
+        let glass = Scene::parse(glass, None).expect("the built-in scene");
+        let model = ProgressModel::for_scene(&glass, &spec, 64 * 64);
+        let f = model.fraction(half_camera, 0, 0.0);
+        assert!(f > 0.5 && f < 1.0, "{f}");
+        let as_given = ProgressModel::new(&spec, 64 * 64).fraction(half_camera, 0, 0.0);
+        assert!(as_given < 1e-3, "{as_given}");
+        let diffuse = Scene::parse(include_str!("../../../scenes/cornell.json"), None).unwrap();
+        let room = ProgressModel::for_scene(&diffuse, &spec, 64 * 64);
+        assert_eq!(room.fraction(half_camera, 0, 0.0), as_given);
     }
 
     /// Passes and a time limit: whichever runs out first leads.
