@@ -256,8 +256,10 @@ fn auto_gathers_in_an_open_room_connects_off_a_washed_wall_and_merges_behind_gla
         ..Merging::DEFAULT
     };
     let gathering = Integrator::Ppm(Progressive {
+        // auto.rs: 4 gather rays a sample, 2 samples a pixel for each one asked.
         pass: PhotonMapping {
-            gather_rays: 8,
+            gather_rays: 4,
+            spp: 2,
             ..PhotonMapping::PPM_PASS
         },
         stop: passes.stop.clone(),

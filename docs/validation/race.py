@@ -53,7 +53,7 @@ SCENES = {
 
 # Integrators raced with options of their own: `ppm_gather` is ppm with final gathering, as
 # `auto` renders a room without mirror or glass whose light a camera path's bounce finds.
-VARIANTS = {"ppm_gather": ["--integrator", "ppm", "--gather-rays", "8"]}
+VARIANTS = {"ppm_gather": ["--integrator", "ppm", "--gather-rays", "4", "--spp", "2"]}
 
 
 def refcheck(*args):

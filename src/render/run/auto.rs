@@ -11,9 +11,10 @@
 //!   light only the light side reaches, and which seen through glass only merging carries:
 //!   `vcm`, which converges;
 //! - no mirror or glass: no caustic to merge. `ppm` with final gathering ([`GATHER_RAYS`]
-//!   rays a sample): one bounce of a camera path, then the global map, its gathers
-//!   stratified over the passes, reached Mitsuba's relmse 1.5-5x sooner than `pt` on
-//!   cornell, knot and cornell_spheres (docs/performance.md, "2026-12-04, late night").
+//!   rays a sample, [`SAMPLES_PER_SPP`] samples a pixel for each one asked): one bounce of
+//!   a camera path, then the global map, its gathers stratified over the passes, reached
+//!   Mitsuba's relmse 1.5-5x sooner than `pt` on cornell, knot and cornell_spheres
+//!   (docs/performance.md, "2026-12-04, late night").
 //!   Pilot renders (`pilot.rs`: `pt` and `bdpt`, then where `pt` does poorly gathering and
 //!   `bdpt`) find the rooms where gather rays meet the light's bright patch too rarely (a
 //!   skewed quad light facing a wall at a few centimetres, which shadow rays sample by
@@ -158,10 +159,15 @@ pub(super) fn choose(
     Ok((integrator, effect))
 }
 
-/// Final-gather rays per camera sample of `auto`'s `ppm`: on cornell at 256x256, 8 rays
-/// reached relmse 0.00149 in 1 s against 16 rays' 0.00268 (with each pass's samples on
-/// their own, 4 and 8 rays were level: docs/performance-history.md, "auto's gathering").
-const GATHER_RAYS: u32 = 8;
+/// Final-gather rays per camera sample of `auto`'s `ppm`, and its camera samples a pixel
+/// per pass for each sample the spec asks for: 8 rays at one sample left a pass's pixels
+/// with one camera ray each, whose edges (the knot's silhouettes, a box's corners) were
+/// most of the error at short budgets; 4 rays at 2 samples, the same gather rays a pass for
+/// 5% more time, reached 0.70, 1.03 and 0.67 of the relmse at 1 s (cornell, cornell_spheres,
+/// knot; 0.82, 1.03, 0.79 at 8 s). docs/performance-history.md, "auto's gathering: 4 rays
+/// at 2 samples".
+const GATHER_RAYS: u32 = 4;
+const SAMPLES_PER_SPP: u32 = 2;
 
 /// `ppm` with final gathering as `auto` renders a room whose light a camera path's bounce
 /// finds, with `passes`.
@@ -169,7 +175,7 @@ pub(super) fn gathering(passes: &Passes) -> Progressive {
     Progressive {
         pass: PhotonMapping {
             gather_rays: GATHER_RAYS,
-            spp: passes.spp,
+            spp: passes.spp.saturating_mul(SAMPLES_PER_SPP),
             ..PhotonMapping::PPM_PASS
         },
         stop: passes.stop.clone(),
@@ -204,7 +210,8 @@ fn bdpt_or_gathering(
         let why = format!(
             "no mirror or glass: no caustic to merge; {variances}: gather rays find this \
              scene's indirect light, so progressive photon mapping with final gathering \
-             ({GATHER_RAYS} rays a sample, stratified over the passes) reads the rest from \
+             ({SAMPLES_PER_SPP} samples a pixel and {GATHER_RAYS} rays a sample a pass, \
+             stratified over the passes) reads the rest from \
              the global map"
         );
         (Integrator::Ppm(gathering(passes)), why)
