@@ -265,6 +265,7 @@ def report(results, budgets):
 
 COLORS = {"mitsuba": "#000000", "auto": "#d62728", "photon": "#8c564b", "ppm": "#9467bd",
           "pt": "#1f77b4", "lt": "#7f7f7f", "bdpt": "#2ca02c", "vcm": "#ff7f0e"}
+EXTRA_COLORS = ["#17becf", "#e377c2", "#bcbd22", "#393b79"]
 
 
 def plot(name, r, metric, path):
@@ -301,7 +302,8 @@ def plot(name, r, metric, path):
         s = [(t, e) for t, e in sorted(s) if t > 0 and e > 0]
         if not s:
             continue
-        color = COLORS.get(label, "#17becf")
+        # Other builds' curves (auto_<commit>), each in a colour of its own.
+        color = COLORS.get(label, EXTRA_COLORS[i % len(EXTRA_COLORS)])
         line = " ".join(f"{sx(t):.1f},{sy(e):.1f}" for t, e in s)
         dash = ' stroke-dasharray="6,3"' if label == "mitsuba" else ""
         out.append(f'<polyline points="{line}" fill="none" stroke="{color}" '

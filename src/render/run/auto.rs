@@ -10,8 +10,8 @@
 //! - mirror or glass otherwise: caustics (light, specular, diffuse), which from a point
 //!   light only the light side reaches, and which seen through glass only merging carries:
 //!   `vcm`, which converges;
-//! - no mirror or glass: no caustic to merge. `ppm` with final gathering ([`GATHER_RAYS`]
-//!   rays a sample, [`SAMPLES_PER_SPP`] samples a pixel for each one asked): one bounce of
+//! - no mirror or glass: no caustic to merge. `ppm` with final gathering (its rays shaped
+//!   by [`GatherShape`], from the pilot's first stage): one bounce of
 //!   a camera path, then the global map, its gathers stratified over the passes, reached
 //!   Mitsuba's relmse 1.5-5x sooner than `pt` on cornell, knot and cornell_spheres
 //!   (docs/performance.md, "2026-12-04, late night").
@@ -159,23 +159,42 @@ pub(super) fn choose(
     Ok((integrator, effect))
 }
 
-/// Final-gather rays per camera sample of `auto`'s `ppm`, and its camera samples a pixel
-/// per pass for each sample the spec asks for: 8 rays at one sample left a pass's pixels
-/// with one camera ray each, whose edges (the knot's silhouettes, a box's corners) were
-/// most of the error at short budgets; 4 rays at 2 samples, the same gather rays a pass for
-/// 5% more time, reached 0.70, 1.03 and 0.67 of the relmse at 1 s (cornell, cornell_spheres,
-/// knot; 0.82, 1.03, 0.79 at 8 s). docs/performance-history.md, "auto's gathering: 4 rays
-/// at 2 samples".
-const GATHER_RAYS: u32 = 4;
-const SAMPLES_PER_SPP: u32 = 2;
+/// How `auto`'s `ppm` spends a pass's final-gather rays: (gather rays a camera sample,
+/// camera samples a pixel for each one the spec asks for). 8 rays at one sample leave a
+/// pass's pixels one camera ray each, whose edges (the knot's silhouettes, a box's corners)
+/// are most of the error at short budgets where a camera path's bounce finds the light
+/// (the pilot's first stage decides): there 4 rays at 2 samples, the same gather rays a
+/// pass for 5% more time, reached 0.70 and 0.67 of the relmse at 1 s on cornell and knot.
+/// Where the bounce finds the light poorly (a point light's hot spot on the ceiling of
+/// cornell_spheres), the indirect light's noise is the error and 8 rays at one sample
+/// did better (race, one session: time to Mitsuba's relmse at 4 s 0.317 of the budget
+/// against 0.336). docs/performance-history.md, "auto's gathering: 4 rays at 2 samples".
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum GatherShape {
+    /// 4 rays at 2 samples: where the bounce finds the light.
+    OverSamples,
+    /// 8 rays at one sample: where it finds the light poorly.
+    OnOneSample,
+}
+
+impl GatherShape {
+    /// (gather rays a camera sample, camera samples a pixel for each one asked).
+    fn rays_and_samples(self) -> (u32, u32) {
+        match self {
+            GatherShape::OverSamples => (4, 2),
+            GatherShape::OnOneSample => (8, 1),
+        }
+    }
+}
 
 /// `ppm` with final gathering as `auto` renders a room whose light a camera path's bounce
-/// finds, with `passes`.
-pub(super) fn gathering(passes: &Passes) -> Progressive {
+/// or a gather ray finds, with `passes`, its gather rays shaped by `shape`.
+pub(super) fn gathering(passes: &Passes, shape: GatherShape) -> Progressive {
+    let (gather_rays, samples) = shape.rays_and_samples();
     Progressive {
         pass: PhotonMapping {
-            gather_rays: GATHER_RAYS,
-            spp: passes.spp.saturating_mul(SAMPLES_PER_SPP),
+            gather_rays,
+            spp: passes.spp.saturating_mul(samples),
             ..PhotonMapping::PPM_PASS
         },
         stop: passes.stop.clone(),
@@ -207,14 +226,15 @@ fn bdpt_or_gathering(
         );
         (Integrator::Bdpt(passes.clone()), why)
     } else {
+        let shape = pilot.gather_shape();
+        let (rays, samples) = shape.rays_and_samples();
         let why = format!(
             "no mirror or glass: no caustic to merge; {variances}: gather rays find this \
              scene's indirect light, so progressive photon mapping with final gathering \
-             ({SAMPLES_PER_SPP} samples a pixel and {GATHER_RAYS} rays a sample a pass, \
-             stratified over the passes) reads the rest from \
-             the global map"
+             ({rays} rays a camera sample, {samples} spp a pass, stratified over the passes) \
+             reads the rest from the global map"
         );
-        (Integrator::Ppm(gathering(passes)), why)
+        (Integrator::Ppm(gathering(passes, shape)), why)
     })
 }
 

@@ -32,6 +32,7 @@
 use std::ops::ControlFlow;
 
 use super::Inputs;
+use super::auto::GatherShape;
 use crate::render::control::Control;
 use crate::render::film::Image;
 use crate::render::outcome::RenderError;
@@ -81,6 +82,16 @@ impl Pilot {
         self.gathering
             .is_some_and(|g| g * GATHERING_PASS_COST > self.bdpt)
     }
+
+    /// How gathering should spend its rays: over more camera samples where a camera path's
+    /// bounce found the light (the first stage decided alone), on one sample where it did
+    /// not (the second stage ran, and rendered that shape).
+    pub fn gather_shape(&self) -> GatherShape {
+        match self.gathering {
+            None => GatherShape::OverSamples,
+            Some(_) => GatherShape::OnOneSample,
+        }
+    }
 }
 
 /// The pilot of `spec` (its seed, depth and effect switches) on `scene`, cancelled with
@@ -127,7 +138,7 @@ pub(super) fn run_pilot(
         });
     }
     // As many photons a pilot pixel as the render will have a pixel.
-    let mut gathering = super::auto::gathering(&passes);
+    let mut gathering = super::auto::gathering(&passes, GatherShape::OnOneSample);
     let scale = (width * height) as f64 / (w as f64 * h as f64);
     let scaled = |n: u64| {
         ((n as f64 * scale).round() as u64)
