@@ -11,10 +11,10 @@
 //!   light only the light side reaches, and which seen through glass only merging carries:
 //!   `vcm`, which converges;
 //! - no mirror or glass: no caustic to merge. `ppm` with final gathering (its rays shaped
-//!   by [`GatherShape`], from the pilot's first stage): one bounce of
-//!   a camera path, then the global map, its gathers stratified over the passes, reached
-//!   Mitsuba's relmse 1.5-5x sooner than `pt` on cornell, knot and cornell_spheres
-//!   (docs/performance.md, "2026-12-04, late night").
+//!   by [`GatherShape`], which the pilot picks): one bounce of a camera path, then the
+//!   global map, its gathers stratified over the passes, reached Mitsuba's relmse 1.5-5x
+//!   sooner than `pt` on cornell, knot and cornell_spheres (docs/performance.md,
+//!   "2026-12-04, late night").
 //!   Pilot renders (`pilot.rs`: `pt` and `bdpt`, then where `pt` does poorly gathering and
 //!   `bdpt`) find the rooms where gather rays meet the light's bright patch too rarely (a
 //!   skewed quad light facing a wall at a few centimetres, which shadow rays sample by
@@ -159,38 +159,27 @@ pub(super) fn choose(
     Ok((integrator, effect))
 }
 
-/// How `auto`'s `ppm` spends a pass's final-gather rays: (gather rays a camera sample,
-/// camera samples a pixel for each one the spec asks for). 8 rays at one sample leave a
-/// pass's pixels one camera ray each, whose edges (the knot's silhouettes, a box's corners)
-/// are most of the error at short budgets where a camera path's bounce finds the light
-/// (the pilot's first stage decides): there 4 rays at 2 samples, the same gather rays a
-/// pass for 5% more time, reached 0.70 and 0.67 of the relmse at 1 s on cornell and knot.
-/// Where the bounce finds the light poorly (a point light's hot spot on the ceiling of
-/// cornell_spheres), the indirect light's noise is the error and 8 rays at one sample
-/// did better (race, one session: time to Mitsuba's relmse at 4 s 0.317 of the budget
-/// against 0.336). docs/performance-history.md, "auto's gathering: 4 rays at 2 samples".
+/// How `auto`'s `ppm` spends a pass's final-gather rays. With one camera sample a pixel a
+/// pass, the pixels' edges (silhouettes, a box's corners) are most of the error at short
+/// budgets where a camera path's bounce finds the light; where it finds the light poorly
+/// (a point light's hot spot), the indirect light's noise is, and more rays a sample pay.
+/// Measured in docs/performance-history.md, "auto's gathering: 4 rays at 2 samples".
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum GatherShape {
-    /// 4 rays at 2 samples: where the bounce finds the light.
+    /// 4 rays a sample at 2 samples a pixel: where the bounce finds the light.
     OverSamples,
-    /// 8 rays at one sample: where it finds the light poorly.
+    /// 8 rays a sample at one sample a pixel: where it finds the light poorly.
     OnOneSample,
-}
-
-impl GatherShape {
-    /// (gather rays a camera sample, camera samples a pixel for each one asked).
-    fn rays_and_samples(self) -> (u32, u32) {
-        match self {
-            GatherShape::OverSamples => (4, 2),
-            GatherShape::OnOneSample => (8, 1),
-        }
-    }
 }
 
 /// `ppm` with final gathering as `auto` renders a room whose light a camera path's bounce
 /// or a gather ray finds, with `passes`, its gather rays shaped by `shape`.
 pub(super) fn gathering(passes: &Passes, shape: GatherShape) -> Progressive {
-    let (gather_rays, samples) = shape.rays_and_samples();
+    // (gather rays a camera sample, camera samples a pixel for each one the spec asks for)
+    let (gather_rays, samples) = match shape {
+        GatherShape::OverSamples => (4, 2),
+        GatherShape::OnOneSample => (8, 1),
+    };
     Progressive {
         pass: PhotonMapping {
             gather_rays,
@@ -226,15 +215,15 @@ fn bdpt_or_gathering(
         );
         (Integrator::Bdpt(passes.clone()), why)
     } else {
-        let shape = pilot.gather_shape();
-        let (rays, samples) = shape.rays_and_samples();
+        let ppm = gathering(passes, pilot.gather_shape());
         let why = format!(
             "no mirror or glass: no caustic to merge; {variances}: gather rays find this \
              scene's indirect light, so progressive photon mapping with final gathering \
-             ({rays} rays a camera sample, {samples} spp a pass, stratified over the passes) \
-             reads the rest from the global map"
+             ({} rays a camera sample, {} spp a pass, stratified over the passes) reads the \
+             rest from the global map",
+            ppm.pass.gather_rays, ppm.pass.spp
         );
-        (Integrator::Ppm(gathering(passes, shape)), why)
+        (Integrator::Ppm(ppm), why)
     })
 }
 

@@ -2,6 +2,7 @@
 //! size of its result files (a server admits jobs by them), and the relative cost of its
 //! phases (one progress fraction over a whole render).
 
+use super::auto::{self, GatherShape};
 use crate::render::control::{Phase, Progress};
 use crate::render::scene::Scene;
 use crate::spec::{Integrator, RenderSpec, Stop};
@@ -43,18 +44,18 @@ impl Needs {
         let progressive = spec.is_progressive() as u64;
         let film = pixels * 48 * (1 + 2 * progressive);
         let geometry = triangles as u64 * 1200;
-        // Auto may choose vcm (counted below), ppm with final gathering or, under a short
-        // time limit, a photon render: the largest needs of them. Gathering over more
-        // camera samples traces more rays a pass than on one (2 x (4 + 1) against 8 + 1).
+        // Auto may choose vcm (counted below), ppm with final gathering in either shape
+        // or, under a short time limit, a photon render: the largest needs of them.
         let alternatives = match &spec.integrator {
-            Integrator::Auto(passes) => [
-                super::auto::budget_photon(passes, pixels).map(Integrator::Photon),
-                Some(Integrator::Ppm(super::auto::gathering(
-                    passes,
-                    super::auto::GatherShape::OverSamples,
-                ))),
-            ],
-            _ => [None, None],
+            Integrator::Auto(passes) => {
+                let gathering = |shape| Some(Integrator::Ppm(auto::gathering(passes, shape)));
+                [
+                    auto::budget_photon(passes, pixels).map(Integrator::Photon),
+                    gathering(GatherShape::OverSamples),
+                    gathering(GatherShape::OnOneSample),
+                ]
+            }
+            _ => [None, None, None],
         };
         let own = Needs {
             memory_bytes: maps
@@ -184,7 +185,7 @@ impl ProgressModel {
     /// the scene and spec resolve to one photon render (no pilot) counts that render's
     /// phases; counted as `auto`, it would wait for passes it never reports.
     pub fn for_scene(scene: &Scene, spec: &RenderSpec, pixels: u64) -> ProgressModel {
-        ProgressModel::new(&super::auto::known_choice(scene, spec), pixels)
+        ProgressModel::new(&auto::known_choice(scene, spec), pixels)
     }
 
     /// The fraction of the render done when a phase reports `p`, given `passes_done` (the
@@ -264,9 +265,8 @@ mod tests {
             32 * 32,
             0,
         );
-        use super::super::auto::{GatherShape, gathering};
         for shape in [GatherShape::OverSamples, GatherShape::OnOneSample] {
-            let ppm = RenderSpec::ppm(gathering(&passes, shape));
+            let ppm = RenderSpec::ppm(super::auto::gathering(&passes, shape));
             let gathering = Needs::of(&ppm, 32 * 32, 0);
             assert!(gathering.memory_bytes > 10 << 20, "{gathering:?}");
             assert!(auto.memory_bytes >= gathering.memory_bytes, "{auto:?}");

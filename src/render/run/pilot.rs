@@ -62,6 +62,10 @@ const PILOT_PIXELS: f64 = 2304.0;
 /// a skewed light washing a wall in 4 of 5 seeds (16: in none).
 const PILOT_PASSES: u32 = 16;
 
+/// How the second stage's gathering spends its rays, and so the render's where it ran:
+/// where `pt`'s bounce finds the light poorly, more rays a camera sample.
+const SECOND_STAGE_SHAPE: GatherShape = GatherShape::OnOneSample;
+
 /// The fewest photons a pilot pass of gathering traces, however small the image.
 const MIN_PILOT_PHOTONS: u64 = 1_000;
 
@@ -84,12 +88,12 @@ impl Pilot {
     }
 
     /// How gathering should spend its rays: over more camera samples where a camera path's
-    /// bounce found the light (the first stage decided alone), on one sample where it did
-    /// not (the second stage ran, and rendered that shape).
+    /// bounce found the light (the first stage decided alone), else as the second stage
+    /// rendered it ([`SECOND_STAGE_SHAPE`]), the shape its variance vouches for.
     pub fn gather_shape(&self) -> GatherShape {
         match self.gathering {
             None => GatherShape::OverSamples,
-            Some(_) => GatherShape::OnOneSample,
+            Some(_) => SECOND_STAGE_SHAPE,
         }
     }
 }
@@ -138,7 +142,7 @@ pub(super) fn run_pilot(
         });
     }
     // As many photons a pilot pixel as the render will have a pixel.
-    let mut gathering = super::auto::gathering(&passes, GatherShape::OnOneSample);
+    let mut gathering = super::auto::gathering(&passes, SECOND_STAGE_SHAPE);
     let scale = (width * height) as f64 / (w as f64 * h as f64);
     let scaled = |n: u64| {
         ((n as f64 * scale).round() as u64)
