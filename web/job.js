@@ -179,6 +179,7 @@ function showStats(job) {
       ["building maps", fmtSeconds(t.build_maps)],
       ["irradiance precompute", fmtSeconds(t.precompute)],
       ["camera pass", fmtSeconds(t.render)],
+      ["auto's choice (pilot)", fmtSeconds(t.choose || 0)],
       ["total", fmtSeconds(t.total)],
     ]));
   }

@@ -113,6 +113,7 @@ pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
         scene_key: source.as_bytes(),
         piece: None,
         rows: None,
+        choice: None,
     };
     let mut on_pass = |state: &PpmState| {
         if let Err(e) = checkpoint(&a, state) {
@@ -140,9 +141,11 @@ pub fn run_render(a: RenderArgs) -> anyhow::Result<()> {
     if terminal {
         let t = &out.stats.times;
         eprintln!(
-            "{}x{}: photons {:.2}s, maps {:.2}s, precompute {:.2}s, render {:.2}s, total {:.2}s -> {}",
+            "{}x{}: choice {:.2}s, photons {:.2}s, maps {:.2}s, precompute {:.2}s, render {:.2}s, \
+             total {:.2}s -> {}",
             out.image.width,
             out.image.height,
+            t.choose,
             t.photon_trace,
             t.build_maps,
             t.precompute,

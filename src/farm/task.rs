@@ -14,6 +14,7 @@ use std::sync::{Arc, Mutex};
 
 use super::outcome::pack_sum;
 use super::{NewTask, Unit};
+use crate::render::stats::AutoChoice;
 use crate::render::{
     Cancelled, Control, Image, Inputs, MapRequest, MapSource, PhotonMaps, Piece, Rows, Scene,
     SuppliedMaps, TraceNow, run,
@@ -78,6 +79,8 @@ pub struct Kept {
     pub radii: Mutex<Option<[f64; 2]>>,
     /// The job's photon maps, once a band has traced them.
     pub maps: Mutex<Option<Arc<PhotonMaps>>>,
+    /// What `auto` chose for the job, once a piece has chosen: the next pieces run no pilot.
+    pub choice: Mutex<Option<AutoChoice>>,
 }
 
 impl MapSource for Kept {
@@ -132,6 +135,11 @@ pub fn render_unit(
             let inputs = Inputs {
                 scene_key,
                 piece: Some(piece),
+                choice: kept
+                    .choice
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .clone(),
                 ..Inputs::fresh()
             };
             let mut sum = None;
@@ -139,6 +147,7 @@ pub fn render_unit(
                 if st.passes == piece.last() {
                     sum = Some(st.sum().clone());
                     *radii.lock().unwrap_or_else(|e| e.into_inner()) = Some(st.radius_initial);
+                    *kept.choice.lock().unwrap_or_else(|e| e.into_inner()) = st.choice.clone();
                 }
                 ControlFlow::Continue(())
             })?;

@@ -12,7 +12,7 @@ use crate::render::control::{Control, Phase};
 use crate::render::film::Image;
 use crate::render::outcome::{RenderError, RenderOutput};
 use crate::render::ppm::{PpmState, next_r2, pass_seed};
-use crate::render::stats::{PassStats, PpmReport, RenderStats, StopReason, Times};
+use crate::render::stats::{AutoChoice, PassStats, PpmReport, RenderStats, StopReason, Times};
 use crate::spec::Stop;
 
 /// What one pass made.
@@ -74,6 +74,10 @@ pub(crate) struct ProgressiveRun<'a> {
     pub size: (u32, u32),
     /// Render only these passes (a farm's task), from a state positioned before them.
     pub piece: Option<Piece>,
+    /// What `auto` chose, kept in a state that has no choice yet.
+    pub choice: Option<AutoChoice>,
+    /// Seconds spent before the first pass (`auto`'s pilot), counted against a time limit.
+    pub spent_choosing: f64,
 }
 
 /// Passes `first .. first + count` (1-based) of a progressive render, rendered on their
@@ -120,6 +124,9 @@ pub(crate) fn run_passes(
             (state, &piece_stop)
         }
     };
+    if state.choice.is_none() {
+        state.choice = run.choice;
+    }
     let tracker = control.tracker(Phase::Passes, stop.pass_limit() as u64);
     tracker.advance(state.passes as u64);
     // The error of the image so far against this render's reference (a resumed state's
@@ -129,7 +136,7 @@ pub(crate) fn run_passes(
         _ => None,
     };
     let stopped_by = loop {
-        if let Some(reason) = should_stop(&state, stop, error) {
+        if let Some(reason) = should_stop(&state, stop, error, run.spent_choosing) {
             break reason;
         }
         control.check()?;
@@ -265,8 +272,15 @@ fn start_state(
     }
 }
 
-/// Whether to stop before another pass.
-fn should_stop(state: &PpmState, stop: &Stop, error: Option<ImageError>) -> Option<StopReason> {
+/// Whether to stop before another pass; `spent` seconds before the passes count against the
+/// time limit (`auto`'s pilot: `--time-limit T` is the whole render's T), and not in the
+/// mean pass by which the next one is foreseen.
+fn should_stop(
+    state: &PpmState,
+    stop: &Stop,
+    error: Option<ImageError>,
+    spent: f64,
+) -> Option<StopReason> {
     if state.passes >= stop.pass_limit() {
         return Some(StopReason::Iterations);
     }
@@ -281,7 +295,7 @@ fn should_stop(state: &PpmState, stop: &Stop, error: Option<ImageError>) -> Opti
     if let Some(limit) = stop.time_limit {
         let elapsed = state.elapsed();
         let mean_pass = elapsed / state.passes as f64;
-        if elapsed + mean_pass > limit {
+        if spent + elapsed + mean_pass > limit {
             return Some(StopReason::TimeLimit);
         }
     }
@@ -295,4 +309,46 @@ fn sum_times(t: &mut Times, state: &PpmState) {
     t.precompute = 0.0;
     t.render = state.totals.render;
     t.total = state.elapsed();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A state after `passes` passes of 0.1 s each.
+    fn after(passes: u32) -> PpmState {
+        let mut state = PpmState::new(String::new(), 1, 1);
+        state.passes = passes;
+        state.last = Some(PassStats {
+            pass: passes,
+            radius_global: 0.0,
+            radius_caustic: 0.0,
+            photon_trace: 0.0,
+            build_maps: 0.0,
+            render: 0.1,
+            elapsed: 0.1 * passes as f64,
+            global_stored: 0,
+            caustic_stored: 0,
+            error: None,
+        });
+        state
+    }
+
+    /// `--time-limit 1` with a pilot of 0.45 s: passes stop where the pilot and they would
+    /// pass 1 s with another, not at 1 s of passes alone; the pilot is not taken for a pass.
+    #[test]
+    fn a_time_limit_counts_the_seconds_spent_choosing() {
+        let stop = Stop {
+            iterations: None,
+            time_limit: Some(1.0),
+            target_error: None,
+        };
+        let stops = |passes, spent| should_stop(&after(passes), &stop, None, spent).is_some();
+        assert!(!stops(4, 0.45), "0.45 + 0.4 + 0.1 is within 1 s");
+        assert!(stops(5, 0.45), "0.45 + 0.5 + 0.1 is past 1 s");
+        assert!(!stops(8, 0.0), "without a pilot, 0.8 + 0.1 is within 1 s");
+        assert!(stops(10, 0.0), "1.0 + 0.1 is past 1 s");
+        // At least one pass, whatever the pilot took.
+        assert!(!stops(0, 5.0));
+    }
 }

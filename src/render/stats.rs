@@ -18,6 +18,10 @@ pub struct Times {
     /// pass's lookups read; part of the camera pass's cost.
     pub precompute: f64,
     pub render: f64,
+    /// `auto`'s choice of integrator (its pilot renders, `render::run`): counted in `total`
+    /// and in a time limit; 0 for an explicit integrator. A render resumed from a state that
+    /// kept the choice reports the seconds it took when it was made.
+    pub choose: f64,
     pub total: f64,
 }
 
@@ -38,11 +42,28 @@ pub struct PhotonCounts {
 }
 
 /// One effect of light transport, whether this job simulates it, and why.
-#[derive(Serialize, Clone, Debug, PartialEq)]
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
 pub struct Effect {
     pub simulated: bool,
     pub how: String,
     pub reason: String,
+}
+
+/// What `auto` chose for a progressive render, kept in its state (`PpmState::choice`) so
+/// that the render resumes with it instead of running the pilot again: a server job resumes
+/// after every turn it gives way to another user, and a pilot costs a few passes.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+pub struct AutoChoice {
+    /// The chosen spec's form (`SpecForm`), as JSON: a state written by another version
+    /// whose form does not parse still loads, and resumes with a pilot. A resumed render
+    /// takes the integrator's parameters from it, its stop conditions from its own spec.
+    pub params: serde_json::Value,
+    /// `effects.integrator`: which, and why.
+    pub effect: Effect,
+    /// The seconds the choice took (`times.choose`): a resumed render reports them again,
+    /// and its time limit counts them once, with the passes before and after the pause.
+    #[serde(default)]
+    pub seconds: f64,
 }
 
 #[derive(Serialize, Clone, Debug, Default, PartialEq)]
@@ -163,6 +184,7 @@ pub(crate) fn collect(s: &StatsInput) -> RenderStats {
             build_maps: maps.build_seconds,
             precompute,
             render,
+            choose: 0.0,
             total: maps.trace_seconds + maps.build_seconds + precompute + render,
         },
         photons: PhotonCounts {

@@ -83,6 +83,7 @@ impl JobRender<'_> {
             scene_key: self.scene.text.as_bytes(),
             piece: None,
             rows: None,
+            choice: None,
         };
         let mut on_pass = |state: &PpmState| {
             publish.pass_done(state.elapsed());

@@ -18,7 +18,7 @@ use sha2::{Digest, Sha256};
 
 use super::sum::{PIXEL_BYTES, PassSum};
 use crate::render::film::Image;
-use crate::render::stats::{PassStats, PassTotals};
+use crate::render::stats::{AutoChoice, PassStats, PassTotals};
 
 const MAGIC: &[u8] = b"photonbox-ppm-state 3\n";
 
@@ -57,6 +57,9 @@ struct Header {
     totals: PassTotals,
     last: Option<PassStats>,
     history: Vec<PassStats>,
+    /// Absent from states written before it (they resume with a pilot).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    choice: Option<AutoChoice>,
 }
 
 /// The state after some passes.
@@ -82,6 +85,8 @@ pub struct PpmState {
     pub last: Option<PassStats>,
     /// Passes kept for reports: all of the first 256, then thinned (see [`kept_in_history`]).
     pub history: Vec<PassStats>,
+    /// What `auto` chose, for a render of `auto`'s (continued without a second pilot).
+    pub choice: Option<AutoChoice>,
     /// Sum of the passes' images, exact: the same bits however the passes were split.
     pub(crate) sum: PassSum,
 }
@@ -119,6 +124,7 @@ impl PpmState {
             totals: PassTotals::default(),
             last: None,
             history: Vec::new(),
+            choice: None,
             sum: PassSum::new(width, height),
         }
     }
@@ -172,6 +178,7 @@ impl PpmState {
             totals: self.totals,
             last: self.last.clone(),
             history: self.history.clone(),
+            choice: self.choice.clone(),
         };
         let json = serde_json::to_vec(&header).map_err(std::io::Error::other)?;
         let mut buf = Vec::with_capacity(MAGIC.len() + 8 + json.len());
@@ -247,6 +254,7 @@ impl PpmState {
             totals: h.totals,
             last: h.last,
             history: h.history,
+            choice: h.choice,
             sum,
         })
     }

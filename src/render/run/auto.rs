@@ -24,12 +24,13 @@
 //! The choice is a function of the scene and the spec alone (never of the machine or the
 //! clock), so the same job renders the same bytes from the CLI and the server.
 
+use super::Chosen;
 use super::pilot::run_pilot;
 use crate::render::control::Control;
 use crate::render::outcome::RenderError;
 use crate::render::scene::Scene;
-use crate::render::stats::Effect;
-use crate::spec::{Integrator, Merging, Passes, PhotonMapping, Progressive, RenderSpec};
+use crate::render::stats::{AutoChoice, Effect};
+use crate::spec::{Integrator, Merging, Passes, PhotonMapping, Progressive, RenderSpec, SpecForm};
 
 /// Photon-mapping settings from small to large, (emitted photons per map, final-gather
 /// rays, samples per pixel): the race's ladder, along which the error against the
@@ -157,6 +158,31 @@ pub(super) fn choose(
         reason,
     };
     Ok((integrator, effect))
+}
+
+/// The choice a resumed state kept, for `spec` as it resumes: the chosen integrator's
+/// parameters, with `spec`'s stop conditions. None where the kept form does not parse or is
+/// not a progressive integrator's: the pilot then runs again, and, being a function of the
+/// scene and the spec, chooses the same.
+pub(super) fn recorded(
+    kept: &AutoChoice,
+    spec: &RenderSpec,
+    has_reference: bool,
+) -> Option<Chosen> {
+    let mut form: SpecForm = serde_json::from_value(kept.params.clone()).ok()?;
+    let now = SpecForm::of(spec);
+    (form.iterations, form.time_limit, form.target_error) =
+        (now.iterations, now.time_limit, now.target_error);
+    let chosen = form.to_spec(has_reference).ok()?;
+    let progressive = chosen.is_progressive() && !matches!(chosen.integrator, Integrator::Auto(_));
+    progressive.then(|| Chosen {
+        spec: RenderSpec {
+            integrator: chosen.integrator,
+            ..spec.clone()
+        },
+        effect: kept.effect.clone(),
+        seconds: kept.seconds,
+    })
 }
 
 /// How `auto`'s `ppm` spends a pass's final-gather rays. With one camera sample a pixel a

@@ -12,6 +12,7 @@ pub use budget::{Needs, ProgressModel};
 
 use std::ops::ControlFlow;
 use std::sync::Arc;
+use std::time::Instant;
 
 use crate::render::bidir::{BidirPasses, Modes};
 use crate::render::control::{Cancelled, Control};
@@ -24,7 +25,8 @@ use crate::render::ppm::{PpmPasses, PpmState};
 pub use crate::render::progressive::Piece;
 use crate::render::progressive::{Progression, ProgressiveRun, run_passes};
 use crate::render::scene::Scene;
-use crate::spec::{Integrator, RenderSpec, SpecForm};
+use crate::render::stats::{AutoChoice, Effect};
+use crate::spec::{Integrator, Passes, RenderSpec, SpecForm};
 
 /// Where a one-shot render's photon maps come from: traced now ([`TraceNow`]), given
 /// ([`Prebuilt`]), or a cache (the server's). Progressive passes always trace their own
@@ -100,6 +102,10 @@ pub struct Inputs<'a> {
     pub piece: Option<Piece>,
     /// Render only these rows of a one-shot render's image (a farm's tile; see [`Rows`]).
     pub rows: Option<Rows>,
+    /// What `auto` chose for this render before (a farm worker's earlier piece of the job):
+    /// taken instead of a pilot, as a resumed state's own choice is, but its seconds are
+    /// not counted again in `times.choose` (a farm sums its pieces' times).
+    pub choice: Option<AutoChoice>,
 }
 
 /// Rows `first .. first + count` of a one-shot render's image: the output image is that
@@ -122,6 +128,7 @@ impl Inputs<'_> {
             scene_key: b"",
             piece: None,
             rows: None,
+            choice: None,
         }
     }
 }
@@ -142,20 +149,11 @@ pub fn run(
     check_reference(scene, spec, inputs.reference)?;
     // The job's identity is its spec as given; what renders may be auto's choice.
     let fingerprint = fingerprint(inputs.scene_key, spec);
-    let (width, height) = spec.resolution((scene.camera.width, scene.camera.height));
-    let chosen;
-    let (spec, choice) = match &spec.integrator {
-        Integrator::Auto(passes) => {
-            let pixels = width as u64 * height as u64;
-            let (integrator, why) = auto::choose(scene, spec, passes, pixels, control)?;
-            chosen = RenderSpec {
-                integrator,
-                ..spec.clone()
-            };
-            (&chosen, Some(why))
-        }
-        _ => (spec, None),
+    let chosen = match &spec.integrator {
+        Integrator::Auto(passes) => Some(choose(scene, spec, passes, &inputs, control)?),
+        _ => None,
     };
+    let spec = chosen.as_ref().map_or(spec, |c| &c.spec);
     let analysis = analyse(scene, spec);
     let mut out = match &spec.integrator {
         Integrator::Raytrace(_) | Integrator::Photon(_) => {
@@ -166,25 +164,71 @@ pub fn run(
             spec,
             &analysis,
             inputs,
-            fingerprint,
+            (fingerprint, chosen.as_ref()),
             control,
             on_pass,
         )?,
     };
-    if let Some(why) = choice {
-        out.stats.effects.insert("integrator".into(), why);
+    if let Some(c) = chosen {
+        let times = &mut out.stats.times;
+        times.choose = c.seconds;
+        times.total += c.seconds;
+        out.stats.effects.insert("integrator".into(), c.effect);
     }
     Ok(out)
 }
 
+/// `auto` resolved: the spec that renders, why, and the seconds the choice took (when it was
+/// made, for a kept one).
+struct Chosen {
+    spec: RenderSpec,
+    effect: Effect,
+    seconds: f64,
+}
+
+/// `auto`'s choice for `spec` (whose integrator is `Auto(passes)`): the one the caller or a
+/// resumed state kept, if it still parses, else the choice made now.
+fn choose(
+    scene: &Scene,
+    spec: &RenderSpec,
+    passes: &Passes,
+    inputs: &Inputs,
+    control: &Control,
+) -> Result<Chosen, RenderError> {
+    let has_reference = inputs.reference.is_some();
+    // The caller's choice was made by other work than this render's: it reports no seconds.
+    let given = (inputs.choice.as_ref())
+        .and_then(|c| auto::recorded(c, spec, has_reference))
+        .map(|c| Chosen { seconds: 0.0, ..c });
+    let kept = || {
+        let state = inputs.resume.as_ref()?;
+        auto::recorded(state.choice.as_ref()?, spec, has_reference)
+    };
+    if let Some(c) = given.or_else(kept) {
+        return Ok(c);
+    }
+    let t0 = Instant::now();
+    let (width, height) = spec.resolution((scene.camera.width, scene.camera.height));
+    let pixels = width as u64 * height as u64;
+    let (integrator, effect) = auto::choose(scene, spec, passes, pixels, control)?;
+    Ok(Chosen {
+        spec: RenderSpec {
+            integrator,
+            ..spec.clone()
+        },
+        effect,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
 /// The passes of a progressive integrator, from `inputs`' state if it has one;
-/// `fingerprint` names the job as given (before `auto` chose).
+/// `fingerprint` names the job as given, `chosen` what `auto` made of it.
 fn progressive(
     scene: &Scene,
     spec: &RenderSpec,
     analysis: &Analysis,
     inputs: Inputs,
-    fingerprint: String,
+    (fingerprint, chosen): (String, Option<&Chosen>),
     control: &Control,
     on_pass: OnPass,
 ) -> Result<RenderOutput, RenderError> {
@@ -215,6 +259,12 @@ fn progressive(
         radius: spec.merge_radius().map(|(alpha, r)| (alpha, r.is_some())),
         size: (width, height),
         piece: inputs.piece,
+        choice: chosen.map(|c| AutoChoice {
+            params: serde_json::to_value(SpecForm::of(&c.spec)).unwrap_or_default(),
+            effect: c.effect.clone(),
+            seconds: c.seconds,
+        }),
+        spent_choosing: chosen.map_or(0.0, |c| c.seconds),
     };
     run_passes(progression.as_mut(), run, control, on_pass)
 }
