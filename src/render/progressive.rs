@@ -168,15 +168,27 @@ pub(crate) fn run_passes(
             break StopReason::Paused;
         }
     };
-    let mut stats = integrator.stats(&state);
-    sum_times(&mut stats.times, &state);
+    Ok(report(integrator, &state, run.radius, stopped_by, error))
+}
+
+/// The render's output once its passes stopped: the mean image and the stats, with the
+/// times summed over the passes and the progressive section.
+fn report(
+    integrator: &dyn Progression,
+    state: &PpmState,
+    radius: Option<(f64, bool)>,
+    stopped_by: StopReason,
+    error: Option<ImageError>,
+) -> RenderOutput {
+    let mut stats = integrator.stats(state);
+    sum_times(&mut stats.times, state);
     stats.error = error;
     stats.ppm = Some(PpmReport {
-        alpha: run.radius.map_or(0.0, |r| r.0),
+        alpha: radius.map_or(0.0, |r| r.0),
         passes: state.passes,
         radius_initial_global: state.radius_initial[0],
         radius_initial_caustic: state.radius_initial[1],
-        radius_source: match run.radius {
+        radius_source: match radius {
             Some((_, true)) => "radius",
             Some((_, false)) => "auto",
             None => "none",
@@ -184,10 +196,10 @@ pub(crate) fn run_passes(
         stopped_by,
         history: state.history.clone(),
     });
-    Ok(RenderOutput {
+    RenderOutput {
         image: state.image(),
         stats,
-    })
+    }
 }
 
 /// Add a pass to the state: its image to the sum, and the next pass's radii.
