@@ -74,10 +74,9 @@ pub(crate) struct ProgressiveRun<'a> {
     pub size: (u32, u32),
     /// Render only these passes (a farm's task), from a state positioned before them.
     pub piece: Option<Piece>,
-    /// What `auto` chose, kept in a state that has no choice yet.
+    /// What `auto` chose (made now, or the one a resumed state kept), kept in the state:
+    /// its seconds count against a time limit ([`PpmState::choosing`]).
     pub choice: Option<AutoChoice>,
-    /// Seconds spent before the first pass (`auto`'s pilot), counted against a time limit.
-    pub spent_choosing: f64,
 }
 
 /// Passes `first .. first + count` (1-based) of a progressive render, rendered on their
@@ -124,7 +123,7 @@ pub(crate) fn run_passes(
             (state, &piece_stop)
         }
     };
-    if state.choice.is_none() {
+    if run.choice.is_some() {
         state.choice = run.choice;
     }
     let tracker = control.tracker(Phase::Passes, stop.pass_limit() as u64);
@@ -136,7 +135,7 @@ pub(crate) fn run_passes(
         _ => None,
     };
     let stopped_by = loop {
-        if let Some(reason) = should_stop(&state, stop, error, run.spent_choosing) {
+        if let Some(reason) = should_stop(&state, stop, error) {
             break reason;
         }
         control.check()?;
@@ -284,15 +283,10 @@ fn start_state(
     }
 }
 
-/// Whether to stop before another pass; `spent` seconds before the passes count against the
-/// time limit (`auto`'s pilot: `--time-limit T` is the whole render's T), and not in the
-/// mean pass by which the next one is foreseen.
-fn should_stop(
-    state: &PpmState,
-    stop: &Stop,
-    error: Option<ImageError>,
-    spent: f64,
-) -> Option<StopReason> {
+/// Whether to stop before another pass. `auto`'s pilot counts against the time limit
+/// (`--time-limit T` is the whole render's T), not in the mean pass by which the next one is
+/// foreseen.
+fn should_stop(state: &PpmState, stop: &Stop, error: Option<ImageError>) -> Option<StopReason> {
     if state.passes >= stop.pass_limit() {
         return Some(StopReason::Iterations);
     }
@@ -307,7 +301,7 @@ fn should_stop(
     if let Some(limit) = stop.time_limit {
         let elapsed = state.elapsed();
         let mean_pass = elapsed / state.passes as f64;
-        if spent + elapsed + mean_pass > limit {
+        if state.choosing() + elapsed + mean_pass > limit {
             return Some(StopReason::TimeLimit);
         }
     }
@@ -327,9 +321,18 @@ fn sum_times(t: &mut Times, state: &PpmState) {
 mod tests {
     use super::*;
 
-    /// A state after `passes` passes of 0.1 s each.
-    fn after(passes: u32) -> PpmState {
+    /// A state after `passes` passes of 0.1 s each, and `auto`'s pilot of `pilot` seconds.
+    fn after(passes: u32, pilot: f64) -> PpmState {
         let mut state = PpmState::new(String::new(), 1, 1);
+        state.choice = Some(AutoChoice {
+            params: serde_json::Value::Null,
+            effect: crate::render::stats::Effect {
+                simulated: true,
+                how: "auto chose ppm".into(),
+                reason: String::new(),
+            },
+            seconds: pilot,
+        });
         state.passes = passes;
         state.last = Some(PassStats {
             pass: passes,
@@ -355,7 +358,7 @@ mod tests {
             time_limit: Some(1.0),
             target_error: None,
         };
-        let stops = |passes, spent| should_stop(&after(passes), &stop, None, spent).is_some();
+        let stops = |passes, pilot| should_stop(&after(passes, pilot), &stop, None).is_some();
         assert!(!stops(4, 0.45), "0.45 + 0.4 + 0.1 is within 1 s");
         assert!(stops(5, 0.45), "0.45 + 0.5 + 0.1 is past 1 s");
         assert!(!stops(8, 0.0), "without a pilot, 0.8 + 0.1 is within 1 s");

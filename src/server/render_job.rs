@@ -86,7 +86,7 @@ impl JobRender<'_> {
             choice: None,
         };
         let mut on_pass = |state: &PpmState| {
-            publish.pass_done(state.elapsed());
+            publish.pass_done(state.elapsed() + state.choosing());
             self.after_pass(state, &live)
         };
         let out =
@@ -176,9 +176,9 @@ struct Publisher<'a> {
     started: Instant,
     /// Progressive passes done (the last `passes` report).
     passes: AtomicU64,
-    /// The engine's seconds of passes (its time limit's clock, which leaves out the scene
-    /// build, the writes between passes and the time before a resume) at an instant: from
-    /// the first `passes` report, set again after every pass.
+    /// The engine's seconds of passes and of `auto`'s pilot (its time limit's clock, which
+    /// leaves out the scene build, the writes between passes and the time before a resume)
+    /// at an instant: from the first `passes` report, set again after every pass.
     pass_clock: Mutex<Option<(f64, Instant)>>,
     last: Mutex<(f64, Option<&'static str>)>,
 }

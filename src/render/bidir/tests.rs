@@ -71,7 +71,6 @@ fn furnace_error(modes: Modes, broken: Option<(Broken, f32)>) -> f64 {
         size: (24, 24),
         piece: None,
         choice: None,
-        spent_choosing: 0.0,
     };
     let out = run_passes(&mut bidir, run, &Control::none(), &mut |_| {
         ControlFlow::Continue(())

@@ -151,6 +151,11 @@ impl PpmState {
         self.last.as_ref().map_or(0.0, |h| h.elapsed)
     }
 
+    /// Seconds `auto`'s choice took (its pilot), which a time limit counts with the passes.
+    pub fn choosing(&self) -> f64 {
+        self.choice.as_ref().map_or(0.0, |c| c.seconds)
+    }
+
     /// Record a finished pass's statistics.
     pub(crate) fn record(&mut self, p: PassStats) {
         self.totals.photon_trace += p.photon_trace;

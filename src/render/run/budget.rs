@@ -190,7 +190,8 @@ impl ProgressModel {
 
     /// The fraction of the render done when a phase reports `p`, given `passes_done` (the
     /// last `Phase::Passes` report's count) and `pass_seconds`, the render's seconds of
-    /// passes by now (`PpmState::elapsed`'s clock, which its time limit counts).
+    /// passes and of `auto`'s pilot by now (what its time limit counts:
+    /// `PpmState::elapsed` and `PpmState::choosing`).
     pub fn fraction(&self, p: Progress, passes_done: u64, pass_seconds: f64) -> f64 {
         let by_time = self
             .time_limit

@@ -264,7 +264,6 @@ fn progressive(
             effect: c.effect.clone(),
             seconds: c.seconds,
         }),
-        spent_choosing: chosen.map_or(0.0, |c| c.seconds),
     };
     run_passes(progression.as_mut(), run, control, on_pass)
 }
