@@ -147,7 +147,11 @@ pub fn render_unit(
                 if st.passes == piece.last() {
                     sum = Some(st.sum().clone());
                     *radii.lock().unwrap_or_else(|e| e.into_inner()) = Some(st.radius_initial);
-                    *kept.choice.lock().unwrap_or_else(|e| e.into_inner()) = st.choice.clone();
+                    // The first piece's choice, with its pilot's seconds; later pieces took it.
+                    let mut choice = kept.choice.lock().unwrap_or_else(|e| e.into_inner());
+                    if choice.is_none() {
+                        *choice = st.choice.clone();
+                    }
                 }
                 ControlFlow::Continue(())
             })?;

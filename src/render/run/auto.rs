@@ -160,8 +160,8 @@ pub(super) fn choose(
     Ok((integrator, effect))
 }
 
-/// The choice a resumed state kept, for `spec` as it resumes: the chosen integrator's
-/// parameters, with `spec`'s stop conditions. None where the kept form does not parse or is
+/// A kept choice (a resumed state's, or a farm worker's from an earlier piece), for `spec`
+/// as it renders now: the chosen integrator's parameters, with `spec`'s stop conditions. None where the kept form does not parse or is
 /// not a progressive integrator's: the pilot then runs again, and, being a function of the
 /// scene and the spec, chooses the same.
 pub(super) fn recorded(
