@@ -17,7 +17,9 @@ with specular surfaces) and budget T:
   log(error) is interpolated against log(time) to get Mitsuba's error at exactly T.
 - photonbox renders once per integrator with --time-limit (the longest budget) and
   --reference: every pass records its error and its elapsed seconds, so one run gives the
-  whole error-against-time curve; the process's own start-up (scene load) is added. A
+  whole error-against-time curve; the process's own start-up and output (measured by a
+  run of one pass without a reference) and auto's pilot are added, the per-pass
+  comparisons with the reference (the race's measuring) are not. A
   one-shot integrator (photon) is one point per setting of a small ladder of photon counts.
   `auto` renders once per budget with --time-limit T (what it chooses depends on T: a
   photon render under a short limit on a scene with mirror or glass), its cell at T from
@@ -39,7 +41,8 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "..", ".."))
 REFCHECK = os.path.abspath(os.path.join(ROOT, "..", "shared", "refcheck"))
-PHOTONBOX = os.path.join(ROOT, "target", "release", "photonbox")
+# Another build to race (an older commit's, side by side): PHOTONBOX=path/to/photonbox.
+PHOTONBOX = os.environ.get("PHOTONBOX", os.path.join(ROOT, "target", "release", "photonbox"))
 W = H = 256
 
 SCENES = {
@@ -130,19 +133,31 @@ def photonbox_runs(name, scene, ref, integrator, longest, out, tag=None):
     stats = base + ".stats.json"
     t0 = time.time()
     run = [PHOTONBOX, "render", scene, "-o", base + ".png", "--exr", base + ".exr",
-           "--stats", stats, "--width", str(W), "--height", str(H), "--seed", "7",
+           "--width", str(W), "--height", str(H), "--seed", "7",
            *VARIANTS.get(integrator, ["--integrator", integrator]),
-           "--time-limit", str(longest), "--reference", ref]
-    subprocess.run(run, check=True, capture_output=True)
+           "--time-limit", str(longest)]
+    subprocess.run(run + ["--stats", stats, "--reference", ref], check=True,
+                   capture_output=True)
     wall = time.time() - t0
     s = json.load(open(stats))
     how = s.get("effects", {}).get("integrator", {}).get("how", integrator)
     if "ppm" not in s:  # auto chose a one-shot render: one point
         return [{"seconds": wall, **compare(base + ".exr", ref), "integrator": how}]
     passes = s["ppm"]["history"]
-    # The process's time beyond its passes (start-up, scene load, output), spread over none:
-    # added to every pass's elapsed time.
-    overhead = max(0.0, wall - passes[-1]["elapsed"])
+    # Pass i ends at its elapsed seconds (the passes' own time) after the process's start-up
+    # (scene load, reference load) and auto's pilot; the output is written at the end. The
+    # comparison with the reference after every pass is the race's measuring, and not in
+    # `elapsed`: with thousands of passes it is seconds, which an overhead taken as the
+    # run's wall time less its last pass's elapsed charged to every pass, the first one
+    # too. So the start-up and output are measured by a run of one pass without a
+    # reference: its wall time less its stats' total (which holds the pilot).
+    one = [a.replace(base, base + ".one") for a in run]  # its own outputs
+    t1 = time.time()
+    subprocess.run(one + ["--iterations", "1", "--stats", base + ".one.stats.json"],
+                   check=True, capture_output=True)
+    one_total = json.load(open(base + ".one.stats.json"))["times"]["total"]
+    start_up = max(0.0, time.time() - t1 - one_total)
+    overhead = start_up + s["times"].get("choose", 0.0)
     # Camera paths per second over the passes' render time (one path per pixel and pass;
     # the history thins out after its first passes: the count is the stats' own).
     paths_per_s = s["ppm"]["passes"] * W * H / max(s["times"]["render"], 1e-9)

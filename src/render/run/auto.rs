@@ -11,7 +11,8 @@
 //!   light only the light side reaches, and which seen through glass only merging carries:
 //!   `vcm`, which converges;
 //! - no mirror or glass: no caustic to merge. `ppm` with final gathering (its rays shaped
-//!   by [`GatherShape`], which the pilot picks): one bounce of a camera path, then the
+//!   by [`GatherShape`], which the pilot picks; half the photons a pass under a short time
+//!   limit alone, [`gathering`]): one bounce of a camera path, then the
 //!   global map, its gathers stratified over the passes, reached Mitsuba's relmse 1.5-5x
 //!   sooner than `pt` on cornell, knot and cornell_spheres (docs/performance.md,
 //!   "2026-12-04, late night").
@@ -161,9 +162,9 @@ pub(super) fn choose(
 }
 
 /// A kept choice (a resumed state's, or a farm worker's from an earlier piece), for `spec`
-/// as it renders now: the chosen integrator's parameters, with `spec`'s stop conditions. None where the kept form does not parse or is
-/// not a progressive integrator's: the pilot then runs again, and, being a function of the
-/// scene and the spec, chooses the same.
+/// as it renders now: the chosen integrator's parameters, with `spec`'s stop conditions.
+/// None where the kept form does not parse or is not a progressive integrator's: the pilot
+/// then runs again, and, being a function of the scene and the spec, chooses the same.
 pub(super) fn recorded(
     kept: &AutoChoice,
     spec: &RenderSpec,
@@ -198,21 +199,41 @@ pub(super) enum GatherShape {
     OnOneSample,
 }
 
+/// The longest time limit (given alone) under which `auto`'s gathering traces half of
+/// `ppm`'s photons a pass ([`gathering`]).
+const SHORT_LIMIT: f64 = 4.0;
+
 /// `ppm` with final gathering as `auto` renders a room whose light a camera path's bounce
 /// or a gather ray finds, with `passes`, its gather rays shaped by `shape`.
+///
+/// Under a short time limit alone ([`SHORT_LIMIT`]) a pass traces half the photons, with
+/// half the k, so that the first pass's radius (the median k-NN distance) stays the same:
+/// tracing them is a large share of a short render's passes, and the time goes into more
+/// passes. Over longer budgets each pass's noisier map costs more than that gains
+/// (measured: docs/performance-history.md, "gathering's photons under a short time
+/// limit").
 pub(super) fn gathering(passes: &Passes, shape: GatherShape) -> Progressive {
     // (gather rays a camera sample, camera samples a pixel for each one the spec asks for)
     let (gather_rays, samples) = match shape {
         GatherShape::OverSamples => (4, 2),
         GatherShape::OnOneSample => (8, 1),
     };
+    let full = PhotonMapping::PPM_PASS;
+    let stop = &passes.stop;
+    let short = stop.until_time()
+        && stop.target_error.is_none()
+        && stop.time_limit.is_some_and(|t| t <= SHORT_LIMIT);
+    let share = if short { 2 } else { 1 };
     Progressive {
         pass: PhotonMapping {
             gather_rays,
             spp: passes.spp.saturating_mul(samples),
-            ..PhotonMapping::PPM_PASS
+            photons: full.photons / share,
+            caustic_photons: full.caustic_photons / share,
+            k: full.k / share as usize,
+            ..full
         },
-        stop: passes.stop.clone(),
+        stop: stop.clone(),
         ..Progressive::DEFAULT
     }
 }
@@ -246,8 +267,8 @@ fn bdpt_or_gathering(
             "no mirror or glass: no caustic to merge; {variances}: gather rays find this \
              scene's indirect light, so progressive photon mapping with final gathering \
              ({} rays a camera sample, {} spp a pass, stratified over the passes) reads the \
-             rest from the global map",
-            ppm.pass.gather_rays, ppm.pass.spp
+             rest from the global map ({} photons a pass)",
+            ppm.pass.gather_rays, ppm.pass.spp, ppm.pass.photons
         );
         (Integrator::Ppm(ppm), why)
     })
@@ -281,5 +302,32 @@ mod tests {
         // Four times the pixels: the same budget buys a smaller rung.
         let big = photon_for_budget(16.0, 4 * PIXELS).expect("a photon render");
         assert!(big.gather_rays * big.spp < 16 * 4);
+    }
+
+    /// Gathering traces half the photons a pass, with half the k, under a time limit alone
+    /// of at most `SHORT_LIMIT`; with a longer limit, a pass count or a target error, all.
+    #[test]
+    fn gathering_halves_its_photons_under_a_short_time_limit_alone() {
+        let with = |time_limit: Option<f64>, iterations: Option<u32>, target: Option<f64>| {
+            let passes = Passes {
+                spp: 1,
+                stop: crate::spec::Stop {
+                    iterations,
+                    time_limit,
+                    target_error: target,
+                },
+            };
+            let p = gathering(&passes, GatherShape::OverSamples).pass;
+            (p.photons, p.caustic_photons, p.k)
+        };
+        let full = PhotonMapping::PPM_PASS;
+        let all = (full.photons, full.caustic_photons, full.k);
+        let half = (full.photons / 2, full.caustic_photons / 2, full.k / 2);
+        assert_eq!(with(Some(1.0), None, None), half);
+        assert_eq!(with(Some(SHORT_LIMIT), None, None), half);
+        assert_eq!(with(Some(SHORT_LIMIT * 1.01), None, None), all);
+        assert_eq!(with(Some(1.0), Some(8), None), all);
+        assert_eq!(with(Some(1.0), None, Some(0.01)), all);
+        assert_eq!(with(None, Some(8), None), all);
     }
 }
