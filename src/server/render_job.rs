@@ -178,7 +178,8 @@ struct Publisher<'a> {
     passes: AtomicU64,
     /// The engine's seconds of passes and of `auto`'s pilot (its time limit's clock, which
     /// leaves out the scene build, the writes between passes and the time before a resume)
-    /// at an instant: from the first `passes` report, set again after every pass.
+    /// at an instant: from the scene's build (the pilot runs next, and reports no
+    /// progress), set again after every pass.
     pass_clock: Mutex<Option<(f64, Instant)>>,
     last: Mutex<(f64, Option<&'static str>)>,
 }
@@ -200,6 +201,8 @@ impl<'a> Publisher<'a> {
     fn scene_built(&self, scene: &Scene, spec: &crate::spec::RenderSpec, pixels: u64) {
         *self.model.lock().unwrap_or_else(|e| e.into_inner()) =
             ProgressModel::for_scene(scene, spec, pixels);
+        let mut clock = self.pass_clock.lock().unwrap_or_else(|e| e.into_inner());
+        clock.get_or_insert_with(|| (0.0, Instant::now()));
     }
 
     /// A pass ended, `seconds` of passes in all.
@@ -208,7 +211,7 @@ impl<'a> Publisher<'a> {
             Some((seconds, Instant::now()));
     }
 
-    /// The engine's seconds of passes by now (0 before the passes start).
+    /// The engine's seconds of passes and pilot by now (0 before the scene is built).
     fn pass_seconds(&self) -> f64 {
         let clock = self.pass_clock.lock().unwrap_or_else(|e| e.into_inner());
         clock.map_or(0.0, |(seconds, at)| seconds + at.elapsed().as_secs_f64())
@@ -254,5 +257,45 @@ fn lower_priority() {
     // SAFETY: setpriority has no memory effects; on Linux, who = 0 is the calling thread.
     unsafe {
         libc::setpriority(libc::PRIO_PROCESS, 0, 10);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spec::{Integrator, Passes, RenderSpec, Stop};
+
+    /// A timed job's clock runs from the scene's build, not from its first pass: `auto`'s
+    /// pilot runs in between, reports no progress, and its time limit counts it.
+    #[test]
+    fn the_pass_clock_runs_from_the_scene_s_build() {
+        let (live, _rx) = watch::channel(Snapshot {
+            status: Status::Running,
+            progress: 0.0,
+            phase: None,
+            eta_seconds: None,
+            previews: 0,
+            error: None,
+        });
+        let spec = RenderSpec::new(Integrator::Auto(Passes {
+            spp: 1,
+            stop: Stop {
+                iterations: None,
+                time_limit: Some(4.0),
+                target_error: None,
+            },
+        }));
+        let scene = Scene::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.json"),
+        )
+        .unwrap();
+        let publish = Publisher::new(&spec, 64 * 64, &live);
+        assert_eq!(publish.pass_seconds(), 0.0);
+        publish.scene_built(&scene, &spec, 64 * 64);
+        let (a, b) = (publish.pass_seconds(), publish.pass_seconds());
+        assert!(a > 0.0 && b >= a, "{a} then {b}");
+        // A pass sets the clock to the engine's own seconds.
+        publish.pass_done(1.5);
+        assert!(publish.pass_seconds() >= 1.5);
     }
 }
