@@ -263,7 +263,6 @@ fn lower_priority() {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spec::{Integrator, Passes, RenderSpec, Stop};
 
     /// A timed job's clock runs from the scene's build, not from its first pass: `auto`'s
     /// pilot runs in between, reports no progress, and its time limit counts it.
@@ -277,14 +276,9 @@ mod tests {
             previews: 0,
             error: None,
         });
-        let spec = RenderSpec::new(Integrator::Auto(Passes {
-            spp: 1,
-            stop: Stop {
-                iterations: None,
-                time_limit: Some(4.0),
-                target_error: None,
-            },
-        }));
+        // A job's params as stored: the default integrator (`auto`) under a time limit.
+        let spec = JobSpec::from_stored(r#"{"time_limit": 4}"#).unwrap().render;
+        assert_eq!(spec.stop().and_then(|s| s.time_limit), Some(4.0));
         let scene = Scene::load(
             &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell.json"),
         )
