@@ -220,8 +220,6 @@ impl<'a> Publisher<'a> {
     fn progress(&self, p: Progress) {
         if p.phase == crate::render::Phase::Passes {
             self.passes.store(p.done, Ordering::Relaxed);
-            let mut clock = self.pass_clock.lock().unwrap_or_else(|e| e.into_inner());
-            clock.get_or_insert_with(|| (0.0, Instant::now()));
         }
         let passes = self.passes.load(Ordering::Relaxed);
         let pass_seconds = self.pass_seconds();

@@ -162,6 +162,15 @@ impl Stop {
         self.iterations.is_none() && self.time_limit.is_some()
     }
 
+    /// The time limit when it is the only stop condition (no pass count, no target error):
+    /// a budget to spend, which `auto` sizes its render to.
+    pub fn time_limit_alone(&self) -> Option<f64> {
+        match (self.iterations, self.target_error) {
+            (None, None) => self.time_limit,
+            _ => None,
+        }
+    }
+
     /// The most passes the render may run: its pass count, else the engine's most.
     pub fn pass_limit(&self) -> u32 {
         self.iterations.unwrap_or(MAX_ITERATIONS)

@@ -87,11 +87,7 @@ fn photon_for_budget(seconds: f64, pixels: u64) -> Option<PhotonMapping> {
 /// `pixels`, if it chooses one: only for a time limit alone (a pass count or a target error
 /// asks for converging passes).
 pub(super) fn budget_photon(passes: &Passes, pixels: u64) -> Option<PhotonMapping> {
-    let stop = &passes.stop;
-    match (stop.time_limit, stop.target_error) {
-        (Some(t), None) if stop.until_time() => photon_for_budget(t, pixels),
-        _ => None,
-    }
+    photon_for_budget(passes.stop.time_limit_alone()?, pixels)
 }
 
 /// The one photon render `auto` chooses for `scene` with `passes` at `pixels`, if it does:
@@ -219,10 +215,7 @@ pub(super) fn gathering(passes: &Passes, shape: GatherShape) -> Progressive {
         GatherShape::OnOneSample => (8, 1),
     };
     let full = PhotonMapping::PPM_PASS;
-    let stop = &passes.stop;
-    let short = stop.until_time()
-        && stop.target_error.is_none()
-        && stop.time_limit.is_some_and(|t| t <= SHORT_LIMIT);
+    let short = (passes.stop.time_limit_alone()).is_some_and(|t| t <= SHORT_LIMIT);
     let share = if short { 2 } else { 1 };
     Progressive {
         pass: PhotonMapping {
@@ -233,7 +226,7 @@ pub(super) fn gathering(passes: &Passes, shape: GatherShape) -> Progressive {
             k: full.k / share as usize,
             ..full
         },
-        stop: stop.clone(),
+        stop: passes.stop.clone(),
         ..Progressive::DEFAULT
     }
 }
