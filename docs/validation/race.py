@@ -28,7 +28,8 @@ with specular surfaces) and budget T:
   it), over T: below 1, photonbox is faster. The best integrator per cell is reported, and
   each integrator's own figure.
 
-Writes OUT/points.json (every measurement) and prints the Markdown tables.
+Writes OUT/points.json (every measurement) and OUT/host.txt (the CPU it ran on, printed
+above the tables: figures compare within one host only), and prints the Markdown tables.
 """
 import argparse
 import json
@@ -167,6 +168,20 @@ def photonbox_runs(name, scene, ref, integrator, longest, out, tag=None):
             for p in passes]
 
 
+def host():
+    """The machine the race ran on, for its tables (figures compare only within one host):
+    the CPU's model name and the cores this process may use."""
+    model = "unknown CPU"
+    try:
+        with open("/proc/cpuinfo") as f:
+            model = next((l.split(":", 1)[1].strip() for l in f if l.startswith("model name")),
+                         model)
+    except OSError:
+        pass
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return f"{model}, {cores} cores"
+
+
 def time_to(curve, metric, target):
     ok = [p["seconds"] for p in curve if p[metric] <= target]
     return min(ok) if ok else None
@@ -185,6 +200,12 @@ def main():
                     help="print the tables and plots of OUT/points.json, render nothing")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
+    host_file = os.path.join(args.out, "host.txt")
+    if not args.report_only:
+        with open(host_file, "w") as f:
+            f.write(host() + "\n")
+    if os.path.exists(host_file):
+        print(f"Host: {open(host_file).read().strip()}", flush=True)
     if args.report_only:
         results = json.load(open(os.path.join(args.out, "points.json")))
         for name, r in results.items():  # the throughput from the stats, as measured
