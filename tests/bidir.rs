@@ -241,8 +241,8 @@ fn gathering_next_to_a_light_facing_a_wall_has_no_fireflies() {
 /// `auto` (issue 20, the default integrator): a room without mirror or glass gets ppm with
 /// final gathering or bdpt by pilot renders (pt against bdpt, then where pt does poorly
 /// gathering against bdpt: ppm where the light shines into the room, under a point light or
-/// an area light, and where a rectangle washes a wall; bdpt where a parallelogram, sampled
-/// by area, does), and one with glass is rendered by vcm;
+/// an area light, and where a point light's hot spot lights it; bdpt where a light washes
+/// a wall, a rectangle's or a parallelogram's), and one with glass is rendered by vcm;
 /// the choice is exactly that integrator (the same bytes) and `effects.integrator` says
 /// which and why.
 #[test]
@@ -269,10 +269,20 @@ fn auto_gathers_in_an_open_room_connects_off_a_washed_wall_and_merges_behind_gla
         })
     };
     let skewed = skewed_wall_wash();
+    // A point light 25 cm under the ceiling: pt finds its hot spot poorly, gather rays well.
+    let hot_spot = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/cornell_spheres.json"
+    ))
+    .expect("scenes/cornell_spheres.json")
+    .replace(r#""width": 384"#, r#""width": 32"#)
+    .replace(r#""height": 384"#, r#""height": 32"#);
+    assert!(hot_spot.contains(r#""height": 32"#));
     for (text, chosen, explicit) in [
         (CLOSED_SPHERE, "ppm", gathering(4, 2)),
         (CLOSED_SPHERE_AREA_LIGHT, "ppm", gathering(4, 2)),
-        (WALL_WASH, "ppm", gathering(8, 1)),
+        (hot_spot.as_str(), "ppm", gathering(8, 1)),
+        (WALL_WASH, "bdpt", Integrator::Bdpt(passes.clone())),
         (skewed.as_str(), "bdpt", Integrator::Bdpt(passes.clone())),
         (GLASS_BOX, "vcm", Integrator::Vcm(vcm)),
     ] {

@@ -13,11 +13,11 @@
 //! of its own, [`PILOT_PASSES`] passes each, and compares per-pass variances (the squared
 //! difference between a pair, relative as `relmse` weighs it), in two stages:
 //!
-//! 1. `pt` against `bdpt` (0.1-0.2 s): where `pt`'s variance is within
-//!    [`BOUNCE_FINDS_THE_LIGHT`] times `bdpt`'s, a camera path's bounce finds the light,
+//! 1. `pt` against `bdpt`: where `pt`'s variance is within [`BOUNCE_FINDS_THE_LIGHT`]
+//!    times `bdpt`'s, a camera path's bounce finds the light,
 //!    and so do gather rays: gathering, without more pilot (cornell, knot);
 //! 2. otherwise `auto`'s gathering itself (its photons scaled to the pilot's pixels, so
-//!    that a density estimate spans as many pixels as in the render; about 0.2 s more)
+//!    that a density estimate spans as many pixels as in the render; about as long again)
 //!    against `bdpt`: `bdpt` when gathering's variance times [`GATHERING_PASS_COST`] is
 //!    the larger. A point light's hot spot (cornell_spheres) makes `pt` poor but not
 //!    gathering, whose shadow rays reach the light from where its gather rays land; a
@@ -57,10 +57,13 @@ const GATHERING_PASS_COST: f64 = 2.0;
 /// Pixels of a pilot image (its aspect the camera's).
 const PILOT_PIXELS: f64 = 2304.0;
 
-/// Passes of each pilot render. Fewer passes of gathering would be cheaper (a pilot render
-/// of it took 0.10 s on cornell, `bdpt`'s 0.04 s), but 8 missed the rare bright gathers of
-/// a skewed light washing a wall in 4 of 5 seeds (16: in none).
-const PILOT_PASSES: u32 = 16;
+/// Passes of each pilot render. With the pixels weighed by `bdpt`'s mean
+/// ([`pass_variances`]) 8 tell the rooms apart as 16 did, seeds 1-5: the first stage's pt/bdpt
+/// 1.7-2.4 on cornell and knot against 6.2-6.6 on cornell_spheres and 23-37 where a light
+/// washes a wall; the second stage's bdpt/gathering over the pass cost 1.9-2.1 on
+/// cornell_spheres, 0.5-0.6 and under 0.03 on a washed wall lit by a rectangle and by a
+/// parallelogram (docs/performance-history.md, "the pilot weighed by bdpt's mean").
+const PILOT_PASSES: u32 = 8;
 
 /// How the second stage's gathering spends its rays, and so the render's where it ran:
 /// where `pt`'s bounce finds the light poorly, more rays a camera sample.
@@ -161,15 +164,18 @@ pub(super) fn run_pilot(
 
 /// Two integrators' per-pass variances from a pair of pilot images of each (each the mean
 /// of [`PILOT_PASSES`] passes): a pair's squared difference is twice the variance of a
-/// mean, weighed by 1 / (m^2 + 0.01) with m the mean of all four images (as `relmse` weighs
-/// an error, but the same weight for both integrators, where `accuracy::compare` would
-/// weigh each by its own noisy second image).
+/// mean, weighed by 1 / (m^2 + 0.01) with m the mean of the second pair, `bdpt`'s (as
+/// `relmse` weighs an error by the reference, the same weight for both integrators).
+/// `bdpt`'s images are the steadier ones wherever the choice is close; a mean that also
+/// held the first integrator's images would rise with its own fireflies and discount them:
+/// with it, a washed wall's pt/bdpt read 4.4-5.9 after 16 passes and 1.9-2.5 after 8,
+/// below [`BOUNCE_FINDS_THE_LIGHT`].
 fn pass_variances([a, b]: &[Image; 2], [x, y]: &[Image; 2]) -> (f64, f64) {
     let (mut first, mut second) = (0.0, 0.0);
     for i in 0..a.pixels.len() {
         for c in 0..3 {
             let [a, b, x, y] = [a, b, x, y].map(|im| im.pixels[i][c] as f64);
-            let weight = 1.0 / (((a + b + x + y) / 4.0).powi(2) + 0.01);
+            let weight = 1.0 / (((x + y) / 2.0).powi(2) + 0.01);
             first += (a - b).powi(2) * weight;
             second += (x - y).powi(2) * weight;
         }
