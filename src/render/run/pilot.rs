@@ -43,8 +43,9 @@ use crate::spec::{Integrator, Passes, RenderSpec, Stop};
 /// Below how many times `bdpt`'s per-pass variance `pt`'s lies where a camera path's bounce
 /// finds the light, so that gathering needs no pilot of its own: a `bdpt` pass's cost in
 /// `pt` passes (1.5-1.8), times the least of how much sooner gathering reached Mitsuba's
-/// error than `pt` (1.7). pt/bdpt was 1.5-2.0 on cornell and knot, 4.4-6.4 where a bright
-/// patch lights the room (docs/performance-history.md, "auto's pilot").
+/// error than `pt` (1.7). pt/bdpt read 1.5-2.0 on cornell and knot, 4.4-6.4 where a bright
+/// patch lights the room, with 16 passes and the old weight (docs/performance-history.md,
+/// "auto's pilot"); 1.7-2.4 and 6.2-37 with 8 passes weighed by `bdpt`'s mean.
 const BOUNCE_FINDS_THE_LIGHT: f64 = 1.8 * 1.7;
 
 /// About how many times a `bdpt` pass's time a pass of `auto`'s gathering takes (one
