@@ -201,11 +201,13 @@ def main():
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
     host_file = os.path.join(args.out, "host.txt")
-    if not args.report_only:
+    if args.report_only:  # the host the points were measured on, if it was recorded
+        machine = open(host_file).read().strip() if os.path.exists(host_file) else "unrecorded"
+    else:
+        machine = host()
         with open(host_file, "w") as f:
-            f.write(host() + "\n")
-    if os.path.exists(host_file):
-        print(f"Host: {open(host_file).read().strip()}", flush=True)
+            f.write(machine + "\n")
+    print(f"Host: {machine}", flush=True)
     if args.report_only:
         results = json.load(open(os.path.join(args.out, "points.json")))
         for name, r in results.items():  # the throughput from the stats, as measured

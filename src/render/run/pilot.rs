@@ -59,7 +59,7 @@ const GATHERING_PASS_COST: f64 = 2.0;
 const PILOT_PIXELS: f64 = 2304.0;
 
 /// Passes of each pilot render. With the pixels weighed by `bdpt`'s mean
-/// ([`pass_variances`]) 8 tell the rooms apart as 16 did, seeds 1-5: the first stage's pt/bdpt
+/// ([`pass_variance`]) 8 tell the rooms apart as 16 did, seeds 1-5: the first stage's pt/bdpt
 /// 1.7-2.4 on cornell and knot against 6.2-6.6 on cornell_spheres and 23-37 where a light
 /// washes a wall; the second stage's bdpt/gathering over the pass cost 1.9-2.1 on
 /// cornell_spheres, 0.5-0.6 and under 0.03 on a washed wall lit by a rectangle and by a
@@ -135,13 +135,13 @@ pub(super) fn run_pilot(
     let pair = |integrator: &Integrator| {
         Ok::<_, RenderError>([render(integrator, 1)?, render(integrator, 2)?])
     };
-    let bdpt = pair(&Integrator::Bdpt(passes.clone()))?;
-    let pt = pair(&Integrator::Pt(passes.clone()))?;
-    let (pt, bdpt_by_pt) = pass_variances(&pt, &bdpt);
-    if pt <= BOUNCE_FINDS_THE_LIGHT * bdpt_by_pt {
+    let bdpt_pair = pair(&Integrator::Bdpt(passes.clone()))?;
+    let bdpt = pass_variance(&bdpt_pair, &bdpt_pair);
+    let pt = pass_variance(&pair(&Integrator::Pt(passes.clone()))?, &bdpt_pair);
+    if pt <= BOUNCE_FINDS_THE_LIGHT * bdpt {
         return Ok(Pilot {
             pt,
-            bdpt: bdpt_by_pt,
+            bdpt,
             gathering: None,
         });
     }
@@ -155,7 +155,7 @@ pub(super) fn run_pilot(
     };
     gathering.pass.photons = scaled(gathering.pass.photons);
     gathering.pass.caustic_photons = scaled(gathering.pass.caustic_photons);
-    let (gathering, bdpt) = pass_variances(&pair(&Integrator::Ppm(gathering))?, &bdpt);
+    let gathering = pass_variance(&pair(&Integrator::Ppm(gathering))?, &bdpt_pair);
     Ok(Pilot {
         pt,
         bdpt,
@@ -163,24 +163,23 @@ pub(super) fn run_pilot(
     })
 }
 
-/// Two integrators' per-pass variances from a pair of pilot images of each (each the mean
-/// of [`PILOT_PASSES`] passes): a pair's squared difference is twice the variance of a
-/// mean, weighed by 1 / (m^2 + 0.01) with m the mean of the second pair, `bdpt`'s (as
-/// `relmse` weighs an error by the reference, the same weight for both integrators).
+/// An integrator's per-pass variance from a pair of its pilot images (each the mean of
+/// [`PILOT_PASSES`] passes): a pair's squared difference is twice the variance of a mean,
+/// weighed by 1 / (m^2 + 0.01) with m the mean of `bdpt`'s pair `weigh_by` (as `relmse`
+/// weighs an error by the reference), the same weight for every integrator compared.
 /// `bdpt`'s images are the steadier ones wherever the choice is close; a mean that also
-/// held the first integrator's images would rise with its own fireflies and discount them:
-/// with it, a washed wall's pt/bdpt read 4.4-5.9 after 16 passes and 1.9-2.5 after 8,
+/// held the measured integrator's images would rise with its own fireflies and discount
+/// them: with it, a washed wall's pt/bdpt read 4.4-5.9 after 16 passes and 1.9-2.5 after 8,
 /// below [`BOUNCE_FINDS_THE_LIGHT`].
-fn pass_variances([a, b]: &[Image; 2], [x, y]: &[Image; 2]) -> (f64, f64) {
-    let (mut first, mut second) = (0.0, 0.0);
+fn pass_variance([a, b]: &[Image; 2], weigh_by: &[Image; 2]) -> f64 {
+    let [x, y] = weigh_by;
+    let mut sum = 0.0;
     for i in 0..a.pixels.len() {
         for c in 0..3 {
             let [a, b, x, y] = [a, b, x, y].map(|im| im.pixels[i][c] as f64);
             let weight = 1.0 / (((x + y) / 2.0).powi(2) + 0.01);
-            first += (a - b).powi(2) * weight;
-            second += (x - y).powi(2) * weight;
+            sum += (a - b).powi(2) * weight;
         }
     }
-    let per_pass = PILOT_PASSES as f64 / 2.0;
-    (first * per_pass, second * per_pass)
+    sum * PILOT_PASSES as f64 / 2.0
 }
