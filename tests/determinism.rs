@@ -136,6 +136,46 @@ fn bidirectional_integrators() {
     }
 }
 
+/// `auto`'s pilot renders its pairs side by side (`run/pilot.rs`): its variances, and so
+/// its choice and the image, are the same bits whatever the thread count, through both
+/// stages (cornell_spheres: `pt` does poorly there, so gathering is piloted too).
+#[test]
+fn auto_s_pilot_and_choice() {
+    use photonbox::spec::{Integrator, Passes, Stop};
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_spheres.json");
+    let scene = Scene::load(&path).unwrap();
+    let spec = RenderSpec {
+        width: Some(32),
+        height: Some(32),
+        ..RenderSpec::new(Integrator::Auto(Passes {
+            spp: 1,
+            stop: Stop::after(1),
+        }))
+    };
+    let with_threads = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let out = pool.install(|| render(&scene, &spec, &Control::none()).unwrap());
+        let bits: Vec<u32> = out
+            .image
+            .pixels
+            .iter()
+            .flatten()
+            .map(|c| c.to_bits())
+            .collect();
+        (out.stats.effects["integrator"].reason.clone(), bits)
+    };
+    let (reason, bits) = with_threads(1);
+    assert!(reason.contains("gathering"), "both stages: {reason}");
+    for threads in [2, 3] {
+        let (r, b) = with_threads(threads);
+        assert_eq!(r, reason, "{threads} threads: another pilot");
+        assert!(b == bits, "{threads} threads: other bits");
+    }
+}
+
 /// A one-shot render split into bands of rows (the farm's tiles, `Inputs::rows`), each
 /// band rendered apart, half of them over photon maps traced again as on another worker,
 /// merges to the bits of the whole render; rows outside the image, a band measured against

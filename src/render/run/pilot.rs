@@ -132,12 +132,19 @@ pub(super) fn run_pilot(
         let mut go_on = |_: &_| ControlFlow::Continue(());
         super::run(scene, &pilot, Inputs::fresh(), &quiet, &mut go_on).map(|o| o.image)
     };
+    // A pair's two renders run side by side: a pilot image's passes are too small to keep
+    // every thread busy alone (each render's bytes are the same either way).
     let pair = |integrator: &Integrator| {
-        Ok::<_, RenderError>([render(integrator, 1)?, render(integrator, 2)?])
+        let (a, b) = rayon::join(|| render(integrator, 1), || render(integrator, 2));
+        Ok::<_, RenderError>([a?, b?])
     };
-    let bdpt_pair = pair(&Integrator::Bdpt(passes.clone()))?;
+    let (bdpt_pair, pt_pair) = rayon::join(
+        || pair(&Integrator::Bdpt(passes.clone())),
+        || pair(&Integrator::Pt(passes.clone())),
+    );
+    let bdpt_pair = bdpt_pair?;
     let bdpt = pass_variance(&bdpt_pair, &bdpt_pair);
-    let pt = pass_variance(&pair(&Integrator::Pt(passes.clone()))?, &bdpt_pair);
+    let pt = pass_variance(&pt_pair?, &bdpt_pair);
     if pt <= BOUNCE_FINDS_THE_LIGHT * bdpt {
         return Ok(Pilot {
             pt,
