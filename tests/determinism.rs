@@ -5,31 +5,35 @@
 use std::path::Path;
 
 use photonbox::render::photon::PhotonStore;
-use photonbox::render::{Control, Scene, render};
+use photonbox::render::{Control, RenderOutput, Scene, render};
 use photonbox::spec::{PhotonMapping, RenderSpec};
 
-fn render_with_threads(scene: &Scene, params: &RenderSpec, threads: usize) -> Vec<[f32; 3]> {
+/// A scene of scenes/.
+fn load(scene_file: &str) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(scene_file);
+    Scene::load(&path).unwrap()
+}
+
+/// `params`' render of `scene` on a pool of `threads` threads.
+fn render_with_threads(scene: &Scene, params: &RenderSpec, threads: usize) -> RenderOutput {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .unwrap();
-    pool.install(|| {
-        render(scene, params, &Control::none())
-            .unwrap()
-            .image
-            .pixels
-    })
+    pool.install(|| render(scene, params, &Control::none()).unwrap())
+}
+
+/// An image's bits.
+fn bits(v: &[[f32; 3]]) -> Vec<u32> {
+    v.iter().flatten().map(|c| c.to_bits()).collect()
 }
 
 fn check(scene_file: &str, params: RenderSpec) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("scenes")
-        .join(scene_file);
-    let scene = Scene::load(&path).unwrap();
-    let one = render_with_threads(&scene, &params, 1);
-    let two = render_with_threads(&scene, &params, 2);
-    let three = render_with_threads(&scene, &params, 3);
-    let bits = |v: &[[f32; 3]]| v.iter().flatten().map(|c| c.to_bits()).collect::<Vec<_>>();
+    let scene = load(scene_file);
+    let pixels = |threads| render_with_threads(&scene, &params, threads).image.pixels;
+    let (one, two, three) = (pixels(1), pixels(2), pixels(3));
     assert!(
         bits(&one) == bits(&two),
         "{scene_file} {params:?}: 1 vs 2 threads differ"
@@ -142,8 +146,7 @@ fn bidirectional_integrators() {
 #[test]
 fn auto_s_pilot_and_choice() {
     use photonbox::spec::{Integrator, Passes, Stop};
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_spheres.json");
-    let scene = Scene::load(&path).unwrap();
+    let scene = load("cornell_spheres.json");
     let spec = RenderSpec {
         width: Some(32),
         height: Some(32),
@@ -153,26 +156,16 @@ fn auto_s_pilot_and_choice() {
         }))
     };
     let with_threads = |threads| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        let out = pool.install(|| render(&scene, &spec, &Control::none()).unwrap());
-        let bits: Vec<u32> = out
-            .image
-            .pixels
-            .iter()
-            .flatten()
-            .map(|c| c.to_bits())
-            .collect();
-        (out.stats.effects["integrator"].reason.clone(), bits)
+        let out = render_with_threads(&scene, &spec, threads);
+        let reason = out.stats.effects["integrator"].reason.clone();
+        (reason, bits(&out.image.pixels))
     };
-    let (reason, bits) = with_threads(1);
+    let (reason, image) = with_threads(1);
     assert!(reason.contains("gathering"), "both stages: {reason}");
     for threads in [2, 3] {
         let (r, b) = with_threads(threads);
         assert_eq!(r, reason, "{threads} threads: another pilot");
-        assert!(b == bits, "{threads} threads: other bits");
+        assert!(b == image, "{threads} threads: other bits");
     }
 }
 
@@ -188,15 +181,13 @@ fn bands_of_rows_rendered_apart_merge_to_the_bits_of_the_whole_image() {
     use photonbox::render::{Inputs, Rows, run};
     use std::sync::atomic::AtomicBool;
 
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_mirror_glass.json");
-    let scene = Scene::load(&path).unwrap();
+    let scene = load("cornell_mirror_glass.json");
     let raytrace = RenderSpec {
         width: Some(48),
         height: Some(40),
         ..RenderSpec::raytrace(2)
     };
     let cancel = AtomicBool::new(false);
-    let bits = |v: &[[f32; 3]]| v.iter().flatten().map(|c| c.to_bits()).collect::<Vec<_>>();
     for spec in [small(SMALL), raytrace.clone()] {
         let whole = render(&scene, &spec, &Control::none()).unwrap().image;
         let tasks = split(&spec, 1e9, 40, 0);

@@ -10,14 +10,5 @@ cpu() {
   /usr/bin/time -f "%U" "$1" render "$SCENE" -o /tmp/ab_cpu.png --integrator "$INTEGRATOR" \
     --iterations 8 --width 256 --height 256 --seed 1 2>&1 >/dev/null | tail -1
 }
-for r in $(seq "$PAIRS"); do
-  if [ $((r % 2)) = 0 ]; then a=$(cpu "$OLD"); b=$(cpu "$NEW"); else b=$(cpu "$NEW"); a=$(cpu "$OLD"); fi
-  echo "$a $b"
-done | python3 -c '
-import statistics, sys
-p = [tuple(map(float, l.split())) for l in sys.stdin]
-r = sorted(b / a for a, b in p)
-q = len(r) // 4
-print(f"new/old user CPU over {len(r)} pairs: median {statistics.median(r):.3f}, "
-      f"quartiles {r[q]:.3f}-{r[-q - 1]:.3f}; median old {statistics.median(a for a, _ in p):.2f} s, "
-      f"new {statistics.median(b for _, b in p):.2f} s")'
+source "$(dirname "$0")/ab_pairs.sh"
+ab_pairs cpu "$OLD" "$NEW" "$PAIRS" "user CPU"
