@@ -11,6 +11,7 @@ use std::time::Instant;
 use glam::Vec3A;
 use photonbox::render::Scene;
 use photonbox::render::geometry::{Accel, Primitive, Ray, Shape};
+use photonbox::render::sampling::{Sampler, Stream, uniform_sphere};
 
 // Embree 3's single-ray structs (rtcore_ray.h) and intersection context (rtcore_common.h,
 // RTC_MAX_INSTANCE_LEVEL_COUNT 1, no minimum width), field for field.
@@ -75,19 +76,6 @@ unsafe extern "C" {
     fn rtcOccluded1(s: *mut c_void, c: *mut Ctx, r: *mut RTCRay);
 }
 
-/// A linear congruential generator: the probe's rays, the same on every run.
-struct Rng(u64);
-
-impl Rng {
-    fn f(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32) / (1u64 << 24) as f32
-    }
-}
-
 const RAYS: usize = 1_000_000;
 
 /// The scene's triangles, as primitives for our `Accel` and as corners for Embree.
@@ -146,12 +134,12 @@ fn probe_rays(tris: &[[Vec3A; 3]]) -> (Vec<Ray>, f32) {
         hi = hi.max(*p);
     }
     let (centre, ext) = ((lo + hi) * 0.5, hi - lo);
-    let mut rng = Rng(7);
+    let mut s = Sampler::new(7, Stream::Camera, 0);
     let rays = (0..RAYS)
         .map(|i| {
             let o = if i % 2 == 0 {
-                let t = &tris[(rng.f() * tris.len() as f32) as usize % tris.len()];
-                let (a, b) = (rng.f(), rng.f());
+                let t = &tris[(s.next_f32() * tris.len() as f32) as usize % tris.len()];
+                let (a, b) = s.next_2d().into();
                 let (a, b) = if a + b > 1.0 {
                     (1.0 - a, 1.0 - b)
                 } else {
@@ -159,15 +147,13 @@ fn probe_rays(tris: &[[Vec3A; 3]]) -> (Vec<Ray>, f32) {
                 };
                 t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b
             } else {
-                centre + (Vec3A::new(rng.f(), rng.f(), rng.f()) - 0.5) * ext * 1.5
+                let u = Vec3A::new(s.next_f32(), s.next_f32(), s.next_f32());
+                centre + (u - 0.5) * ext * 1.5
             };
-            let z = 1.0 - 2.0 * rng.f();
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            let phi = std::f32::consts::TAU * rng.f();
-            let d = Vec3A::new(r * phi.cos(), r * phi.sin(), z);
+            let d = uniform_sphere(s.next_2d());
             let mut ray = Ray::new(o + d * 1e-3 * ext.length(), d);
             if i % 4 == 3 {
-                ray.t_max = rng.f() * ext.length();
+                ray.t_max = s.next_f32() * ext.length();
             }
             ray
         })
@@ -197,8 +183,8 @@ fn context() -> Ctx {
     }
 }
 
-/// Seconds for every ray's closest hit by each, their distances, and a hash of Embree's
-/// hit primitives.
+/// Seconds for every ray's closest hit by each (ours, Embree's); prints how many answers
+/// agree and a hash of Embree's hit primitives.
 fn time_closest(accel: &Accel, scene: *mut c_void, rays: &[Ray]) -> [f64; 2] {
     let t0 = Instant::now();
     let found: Vec<_> = rays
@@ -245,7 +231,7 @@ fn time_closest(accel: &Accel, scene: *mut c_void, rays: &[Ray]) -> [f64; 2] {
     [ours_s, embree_s]
 }
 
-/// Seconds for every ray's occlusion test by each, t_max cut to `reach`.
+/// Seconds for every ray's occlusion test by each (ours, Embree's), t_max cut to `reach`.
 fn time_occluded(accel: &Accel, scene: *mut c_void, rays: &[Ray], reach: f32) -> [f64; 2] {
     let t0 = Instant::now();
     let ours = rays
