@@ -258,7 +258,8 @@ fn auto_gathers_in_an_open_room_connects_off_a_washed_wall_and_merges_behind_gla
         ..Merging::DEFAULT
     };
     // auto.rs, `GatherShape`: 4 gather rays at 2 samples a pixel where the pilot's first
-    // stage found that a camera path's bounce finds the light, 8 at 1 where it did not.
+    // stage found that a camera path's bounce finds the light, 8 at 1 where it did not;
+    // the gathers smoothed within 5 global radii (`GATHER_SMOOTHING`).
     let gathering = |gather_rays, spp| {
         Integrator::Ppm(Progressive {
             pass: PhotonMapping {
@@ -266,6 +267,7 @@ fn auto_gathers_in_an_open_room_connects_off_a_washed_wall_and_merges_behind_gla
                 spp,
                 ..PhotonMapping::PPM_PASS
             },
+            gather_smoothing: 5.0,
             stop: passes.stop.clone(),
             ..Progressive::DEFAULT
         })

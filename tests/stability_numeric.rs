@@ -62,6 +62,7 @@ fn ppm_after_100k_passes_stays_finite_and_right() {
         alpha: 0.5,
         radius: Some(0.3),
         stop: Stop::after(passes),
+        ..Progressive::DEFAULT
     });
     let t0 = std::time::Instant::now();
     // The state after the last pass (the radius of the next pass, the passes done).

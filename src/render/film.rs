@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use crate::render::camera::Camera;
 use crate::render::control::{Cancelled, Control, Phase};
 use crate::render::geometry::Ray;
-use crate::render::integrator::{Samples, Scratch, Shader};
+use crate::render::integrator::{GatherPixel, Samples, Scratch, Shader};
 use crate::render::math::Rgb;
 use crate::render::sampling::{Sampler, Stream};
 
@@ -55,15 +55,27 @@ const TILE: u32 = 16;
 /// `pixel` (its index, row-major), with a per-thread scratch.
 pub(crate) trait CameraPaths: Sync {
     type Scratch: Default + Send;
+    /// What a pixel keeps of its samples besides their mean radiance (`()` for most).
+    type Extra: Default + Send;
 
     fn radiance(&self, ray: &Ray, pixel: u64, s: &mut Sampler, scratch: &mut Self::Scratch) -> Rgb;
 
     /// Sample `j` of `pixel`'s random numbers.
     fn sampler(&self, pixel: u64, j: u32) -> Sampler;
+
+    /// Whether the film keeps each pixel's [`CameraPaths::Extra`]: if not, none is made.
+    fn keeps_extra(&self) -> bool {
+        false
+    }
+
+    /// Fold into `extra` what a sample of radiance `l` left in `scratch` (called only where
+    /// [`CameraPaths::keeps_extra`], after every sample, finite or not).
+    fn add_extra(&self, _extra: &mut Self::Extra, _l: Rgb, _scratch: &mut Self::Scratch) {}
 }
 
 impl CameraPaths for Shader<'_> {
     type Scratch = Scratch;
+    type Extra = GatherPixel;
 
     /// Point `first + j` of the pixel's own scrambled Sobol sequence (`qmc.rs`,
     /// [`crate::render::integrator::Samples`]): a pixel's samples, over all the passes of a
@@ -80,13 +92,24 @@ impl CameraPaths for Shader<'_> {
     fn radiance(&self, ray: &Ray, _: u64, s: &mut Sampler, scratch: &mut Scratch) -> Rgb {
         self.camera_ray(ray, s, scratch)
     }
+
+    fn keeps_extra(&self) -> bool {
+        self.record_gathers
+    }
+
+    #[inline]
+    fn add_extra(&self, extra: &mut GatherPixel, l: Rgb, scratch: &mut Scratch) {
+        extra.add(l.is_finite(), scratch.gather.take());
+    }
 }
 
 /// The result of the camera pass.
-pub struct FilmOutput {
+pub struct FilmOutput<E = ()> {
     pub image: Image,
     /// Samples dropped because they were NaN or infinite.
     pub nonfinite_samples: u64,
+    /// Each pixel's [`CameraPaths::Extra`], row-major; empty unless the paths keep them.
+    pub extra: Vec<E>,
 }
 
 /// A pixel's samples so far: the sum of the finite ones and how many were not finite. Those
@@ -134,7 +157,7 @@ pub(crate) fn render_film<P: CameraPaths>(
     camera: &Camera,
     spp: u32,
     control: &Control,
-) -> Result<FilmOutput, Cancelled> {
+) -> Result<FilmOutput<P::Extra>, Cancelled> {
     render_film_rows(paths, camera, 0..camera.height, spp, control)
 }
 
@@ -146,7 +169,7 @@ pub(crate) fn render_film_rows<P: CameraPaths>(
     rows: std::ops::Range<u32>,
     spp: u32,
     control: &Control,
-) -> Result<FilmOutput, Cancelled> {
+) -> Result<FilmOutput<P::Extra>, Cancelled> {
     let (w, y_start) = (camera.width, rows.start);
     let h = rows.end.min(camera.height).saturating_sub(y_start);
     let tiles_x = w.div_ceil(TILE);
@@ -154,7 +177,8 @@ pub(crate) fn render_film_rows<P: CameraPaths>(
     let n_tiles = tiles_x * tiles_y;
     let tracker = control.tracker(Phase::Render, w as u64 * h as u64);
     let dropped = AtomicU64::new(0);
-    let tiles: Vec<Vec<[f32; 3]>> = (0..n_tiles)
+    let keep = paths.keeps_extra();
+    let tiles: Vec<Tile<P::Extra>> = (0..n_tiles)
         .into_par_iter()
         .map_init(P::Scratch::default, |scratch, t| {
             control.check()?;
@@ -163,6 +187,10 @@ pub(crate) fn render_film_rows<P: CameraPaths>(
             let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
             let tw = (x1 - x0) as usize;
             let mut out = vec![[0.0f32; 3]; tw * (y1 - y0) as usize];
+            let mut extras = Vec::new();
+            if keep {
+                extras.resize_with(out.len(), P::Extra::default);
+            }
             let mut bad = 0;
             for y in y0..y1 {
                 // Rows alternate direction (a serpentine), so that each pixel follows a
@@ -172,6 +200,7 @@ pub(crate) fn render_film_rows<P: CameraPaths>(
                     let x = if forward { x0 + i } else { x1 - 1 - i };
                     let pixel = (y_start + y) as u64 * w as u64 + x as u64;
                     let mut px = PixelSum::default();
+                    let at = (y - y0) as usize * tw + (x - x0) as usize;
                     for j in 0..spp {
                         let mut s = paths.sampler(pixel, j);
                         let jitter = s.next_2d();
@@ -180,33 +209,58 @@ pub(crate) fn render_film_rows<P: CameraPaths>(
                         let l = paths.radiance(&ray, pixel, &mut s, scratch);
                         control.check()?;
                         px.add(l);
+                        if keep {
+                            paths.add_extra(&mut extras[at], l, scratch);
+                        }
                     }
                     bad += px.bad as u64;
-                    out[(y - y0) as usize * tw + (x - x0) as usize] = px.mean().to_array();
+                    out[at] = px.mean().to_array();
                 }
                 tracker.advance(tw as u64);
             }
             if bad > 0 {
                 dropped.fetch_add(bad, Ordering::Relaxed);
             }
-            Ok(out)
+            Ok((out, extras))
         })
         .collect::<Result<_, Cancelled>>()?;
+    let (image, extra) = join_tiles(tiles, w, h, keep);
+    Ok(FilmOutput {
+        image,
+        nonfinite_samples: dropped.into_inner(),
+        extra,
+    })
+}
+
+/// A tile's pixels, row-major, and their extras (none unless kept).
+type Tile<E> = (Vec<[f32; 3]>, Vec<E>);
+
+/// The tiles of a `w` x `h` film (in tile order, [`TILE`] pixels square) as one image, and
+/// their pixels' extras as one row-major list where `keep` (else none).
+fn join_tiles<E: Default>(tiles: Vec<Tile<E>>, w: u32, h: u32, keep: bool) -> (Image, Vec<E>) {
+    let tiles_x = w.div_ceil(TILE);
     let mut image = Image::new(w, h);
-    for (t, tile) in tiles.into_iter().enumerate() {
+    let mut extra = Vec::new();
+    if keep {
+        extra.resize_with(image.pixels.len(), E::default);
+    }
+    for (t, (tile, extras)) in tiles.into_iter().enumerate() {
         let t = t as u32;
         let (x0, y0) = ((t % tiles_x) * TILE, (t / tiles_x) * TILE);
         let x1 = (x0 + TILE).min(w);
         let tw = (x1 - x0) as usize;
-        for (i, px) in tile.into_iter().enumerate() {
+        let at = |i: usize| {
             let (dx, dy) = ((i % tw) as u32, (i / tw) as u32);
-            image.pixels[(y0 + dy) as usize * w as usize + (x0 + dx) as usize] = px;
+            (y0 + dy) as usize * w as usize + (x0 + dx) as usize
+        };
+        for (i, px) in tile.into_iter().enumerate() {
+            image.pixels[at(i)] = px;
+        }
+        for (i, e) in extras.into_iter().enumerate() {
+            extra[at(i)] = e;
         }
     }
-    Ok(FilmOutput {
-        image,
-        nonfinite_samples: dropped.into_inner(),
-    })
+    (image, extra)
 }
 
 #[cfg(test)]

@@ -89,6 +89,7 @@ pub(crate) fn render_with_maps(
             seed: spec.seed,
             first: 0,
         },
+        record_gathers: false,
     };
     let t_render = Instant::now();
     let film = render_film_rows(&shader, &camera, rows, spec.spp(), control)?;

@@ -94,6 +94,7 @@ impl SpecForm {
                 f.fill_photon_mapping(&mut p.pass);
                 f.fill_radius(&mut p.alpha, &mut p.radius);
                 f.fill_stop(&mut p.stop);
+                p.gather_smoothing = f.gather_smoothing.unwrap_or(p.gather_smoothing);
             }
             Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) | Integrator::Auto(p) => {
                 f.fill_passes(p)
@@ -165,11 +166,13 @@ impl SpecForm {
                 pass,
                 alpha,
                 radius,
+                gather_smoothing,
                 stop,
             }) => {
                 f.set_photon_mapping(pass);
                 f.set_stop(stop);
                 (f.alpha, f.radius) = (Some(*alpha), *radius);
+                f.gather_smoothing = Some(*gather_smoothing);
             }
             Integrator::Pt(p) | Integrator::Lt(p) | Integrator::Bdpt(p) | Integrator::Auto(p) => {
                 f.set_passes(p)

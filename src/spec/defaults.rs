@@ -42,6 +42,7 @@ impl Progressive {
         pass: PhotonMapping::PPM_PASS,
         alpha: 0.7,
         radius: None,
+        gather_smoothing: 0.0,
         stop: Stop {
             iterations: Some(16),
             time_limit: None,

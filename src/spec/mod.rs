@@ -130,6 +130,10 @@ pub struct Progressive {
     /// Initial radius of both maps' estimates (scene units); `None`: from the k-NN radius of
     /// the first pass's photons.
     pub radius: Option<f32>,
+    /// With final gathering: each pass shares the gathers at the points the camera sees
+    /// between neighbouring pixels on one surface, within this many global-map radii over
+    /// sqrt(pass) (`render/integrator/smooth.rs`); 0 shares none.
+    pub gather_smoothing: f32,
     pub stop: Stop,
 }
 

@@ -40,6 +40,8 @@ pub enum Scope {
     Progressive,
     /// Integrators that merge with a shrinking radius (ppm, vcm) only: an error elsewhere.
     Merging,
+    /// ppm only (its final gathers): an error elsewhere.
+    Ppm,
 }
 
 impl Scope {
@@ -50,6 +52,7 @@ impl Scope {
             Scope::PhotonMaps => spec.photon_mapping().is_some(),
             Scope::Progressive => spec.is_progressive(),
             Scope::Merging => spec.merge_radius().is_some(),
+            Scope::Ppm => matches!(spec.integrator, super::Integrator::Ppm(_)),
         }
     }
 }
@@ -90,6 +93,11 @@ pub const RULES: &[Rule] = &[
     ),
     rule("alpha", Scope::Merging, Range::OpenUnit),
     rule("radius", Scope::Merging, Range::Positive),
+    rule(
+        "gather_smoothing",
+        Scope::Ppm,
+        Range::Span { lo: 0.0, hi: 64.0 },
+    ),
     rule("time_limit", Scope::Progressive, Range::Positive),
     rule("target_error", Scope::Progressive, Range::Positive),
     rule(
@@ -172,7 +180,7 @@ pub fn check_numbers(f: &SpecForm) -> Result<(), SpecError> {
 impl SpecForm {
     /// The form's numbers by name, as f64 (every integer the form takes is exact in f64 up
     /// to its range's maximum, and beyond it still compares as beyond).
-    pub(super) fn numbers(&self) -> [(&'static str, Option<f64>); 14] {
+    pub(super) fn numbers(&self) -> [(&'static str, Option<f64>); 15] {
         let u = |v: Option<u64>| v.map(|v| v as f64);
         let u32 = |v: Option<u32>| v.map(f64::from);
         [
@@ -187,6 +195,7 @@ impl SpecForm {
             ("iterations", u32(self.iterations)),
             ("alpha", self.alpha),
             ("radius", self.radius.map(f64::from)),
+            ("gather_smoothing", self.gather_smoothing.map(f64::from)),
             ("time_limit", self.time_limit),
             ("target_error", self.target_error),
             ("exposure", self.exposure.map(f64::from)),

@@ -40,6 +40,7 @@ struct Vertex<'v> {
 
 impl CameraPaths for CameraPass<'_> {
     type Scratch = ();
+    type Extra = ();
 
     /// The pixel's point of its own Sobol sequence at this iteration (`qmc.rs`): one
     /// sample a pixel per iteration, so only the pixel names it.

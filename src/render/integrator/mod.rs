@@ -27,8 +27,10 @@
 //! `NEAR_GATHER_RADII`).
 
 mod shade;
+mod smooth;
 
 pub use shade::{Samples, Scratch, Shader};
+pub use smooth::{GatherPixel, Smoothing, smooth_gathers};
 
 use crate::render::photon::{ClassMask, PathClass};
 use crate::spec::{EffectSwitches, PhotonStore, RenderSpec};

@@ -4,6 +4,7 @@ use std::f32::consts::FRAC_1_PI;
 
 use glam::Vec3A;
 
+use super::smooth::GatherSample;
 use super::{Plan, VertexPlan};
 use crate::render::control::Control;
 use crate::render::geometry::{Hit, Ray, Surface, SurfacePoint, spawn_ray, spawn_ray_to};
@@ -31,6 +32,9 @@ pub struct Shader<'a> {
     pub control: Control<'a>,
     /// Which points of the pixels' quasi-random sequences this camera pass draws.
     pub samples: Samples,
+    /// Leave each camera sample's final gather at the point the camera sees in the scratch
+    /// ([`GatherSample`]), for the film to keep (ppm's smoothed gathers, `smooth.rs`).
+    pub record_gathers: bool,
 }
 
 /// Which points of each pixel's Sobol sequence a camera pass draws: sample j is point
@@ -69,6 +73,8 @@ const GATHER_CHECK: u32 = 64;
 #[derive(Default)]
 pub struct Scratch {
     density: DensityScratch,
+    /// The last camera sample's gather (with [`Shader::record_gathers`]).
+    pub gather: Option<GatherSample>,
 }
 
 /// Whether a ray counts the light surfaces it reaches, so that no light path is counted
@@ -117,6 +123,7 @@ impl<'p> Segment<'p> {
 impl Shader<'_> {
     /// Radiance arriving at the camera along `ray`.
     pub fn camera_ray(&self, ray: &Ray, s: &mut Sampler, scratch: &mut Scratch) -> Rgb {
+        scratch.gather = None;
         let seg = Segment {
             depth: 0,
             emission: Emission::Count,
@@ -224,7 +231,16 @@ impl Shader<'_> {
                 l += rho * FRAC_1_PI * e;
             }
             if vertex.gather {
-                l += rho * self.final_gather(sp, n_side, seg.depth, s, scratch);
+                let g = self.final_gather(sp, n_side, seg.depth, s, scratch);
+                l += rho * g;
+                if self.record_gathers && seg.depth == 0 {
+                    scratch.gather = Some(GatherSample {
+                        p: sp.p,
+                        n: n_side,
+                        g,
+                        rho,
+                    });
+                }
             }
             if vertex.bounce {
                 l += rho * self.bounce(sp, n_side, seg, s, scratch);

@@ -195,6 +195,11 @@ pub(super) enum GatherShape {
     OnOneSample,
 }
 
+/// How far `auto`'s gathering shares a pass's gathers between pixels, in global-map radii
+/// (`render/integrator/smooth.rs`); chosen among 3, 5 and 8 on cornell and cornell_spheres
+/// (docs/performance-history.md, "smoothed final gathers").
+const GATHER_SMOOTHING: f32 = 5.0;
+
 /// The longest time limit (given alone) under which `auto`'s gathering traces half of
 /// `ppm`'s photons a pass ([`gathering`]).
 const SHORT_LIMIT: f64 = 4.0;
@@ -226,6 +231,7 @@ pub(super) fn gathering(passes: &Passes, shape: GatherShape) -> Progressive {
             k: full.k / share as usize,
             ..full
         },
+        gather_smoothing: GATHER_SMOOTHING,
         stop: passes.stop.clone(),
         ..Progressive::DEFAULT
     }
@@ -259,9 +265,10 @@ fn bdpt_or_gathering(
         let why = format!(
             "no mirror or glass: no caustic to merge; {variances}: gather rays find this \
              scene's indirect light, so progressive photon mapping with final gathering \
-             ({} rays a camera sample, {} spp a pass, stratified over the passes) reads the \
-             rest from the global map ({} photons a pass)",
-            ppm.pass.gather_rays, ppm.pass.spp, ppm.pass.photons
+             ({} rays a camera sample, {} spp a pass, stratified over the passes, shared \
+             between neighbouring pixels on one surface within {} global radii over \
+             sqrt(pass)) reads the rest from the global map ({} photons a pass)",
+            ppm.pass.gather_rays, ppm.pass.spp, ppm.gather_smoothing, ppm.pass.photons
         );
         (Integrator::Ppm(ppm), why)
     })

@@ -23,6 +23,16 @@ pub struct Needs {
     pub result_bytes: u64,
 }
 
+/// Bytes a pixel for ppm's smoothed gathers (`render/integrator/smooth.rs`), where they
+/// run: the film's record of each pixel's gathers (56, held twice while the tiles are
+/// joined), their surfaces (56) and the fits along the rows (16).
+fn smoothing_bytes(spec: &RenderSpec) -> u64 {
+    match &spec.integrator {
+        Integrator::Ppm(p) if p.gather_smoothing > 0.0 && p.pass.gather_rays > 0 => 184,
+        _ => 0,
+    }
+}
+
 impl Needs {
     /// The needs of `spec` at `pixels` pixels over a scene of `triangles` triangles.
     ///
@@ -42,7 +52,7 @@ impl Needs {
         let maps = (global + caustic) * PHOTON_BYTES * 2;
         let irradiance = global / 4 * 64;
         let progressive = spec.is_progressive() as u64;
-        let film = pixels * 48 * (1 + 2 * progressive);
+        let film = pixels * 48 * (1 + 2 * progressive) + pixels * smoothing_bytes(spec);
         let geometry = triangles as u64 * 1200;
         // Auto may choose vcm (counted below), ppm with final gathering in either shape
         // or, under a short time limit, a photon render: the largest needs of them.

@@ -162,6 +162,10 @@ pub(super) fn run_pilot(
     };
     gathering.pass.photons = scaled(gathering.pass.photons);
     gathering.pass.caustic_photons = scaled(gathering.pass.caustic_photons);
+    // Unsmoothed, as the thresholds were measured: smoothing lowers a pass's variance by a
+    // blur, which a variance does not charge, so it would tip the choice toward gathering
+    // where its gather rays find the light poorly (a washed wall).
+    gathering.gather_smoothing = 0.0;
     let gathering = pass_variance(&pair(&Integrator::Ppm(gathering))?, &bdpt_pair);
     Ok(Pilot {
         pt,
