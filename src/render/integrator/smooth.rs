@@ -6,10 +6,11 @@
 //! sparse gathers for that reason). So a pass replaces each pixel's gathered radiance by
 //! the value at its point of a weighted linear fit (local linear regression) to the gathers
 //! of the pixels about it whose points lie on its surface: its plane, its normal and its
-//! reflectance, within a radius that is a fixed multiple of the pass's global-map radius.
-//! That radius shrinks pass after pass as the map's does (Knaus and Zwicker 2011), so each
-//! pass's blur vanishes as the passes go on and the mean of the passes converges, while the
-//! first passes show the noise of many pixels' gathers instead of one's. A fit rather than
+//! reflectance, within a radius that is a multiple of the pass's global-map radius over
+//! sqrt(pass) (`ppm/passes.rs`). That radius shrinks faster than the map's (Knaus and
+//! Zwicker 2011), so each pass's blur vanishes as the passes go on and the mean of the
+//! passes converges, while the first passes show the noise of many pixels' gathers instead
+//! of one's. A fit rather than
 //! a mean: where the kernel is cut (the image's border, a corner's other wall) a mean would
 //! lean toward the side that remains by the light's gradient there; a fit follows it.
 //! Measured in docs/performance-history.md, "smoothed final gathers".
@@ -33,7 +34,7 @@ pub struct GatherSample {
     pub rho: Rgb,
 }
 
-/// Two points lie on one surface when their normals are at least this cosine apart...
+/// Two points lie on one surface when the cosine between their normals is at least this...
 const SAME_NORMAL: f32 = 0.9;
 
 /// ... and the one lies at most this fraction of the kernel's radius off the other's plane.
@@ -47,9 +48,9 @@ const MIXED_SINE: f32 = 0.5;
 #[derive(Clone, Debug, Default)]
 pub struct GatherPixel {
     /// Finite samples (the pixel's mean is over these).
-    good: u16,
+    good: u32,
     /// Of them, those that gathered.
-    gathered: u16,
+    gathered: u32,
     /// The samples gathered on different surfaces: left as they are, and lent to none.
     mixed: bool,
     /// The sums of the gathers' points and normals, and of their gathered radiances
@@ -66,7 +67,7 @@ impl GatherPixel {
         if !finite {
             return;
         }
-        self.good = self.good.saturating_add(1);
+        self.good += 1;
         let Some(s) = gather else {
             return;
         };
@@ -78,7 +79,7 @@ impl GatherPixel {
                 self.mixed = true;
             }
         }
-        self.gathered = self.gathered.saturating_add(1);
+        self.gathered += 1;
         self.p += Vec3::from(s.p);
         self.n += Vec3::from(s.n);
         self.g += Vec3::from(s.g);
@@ -122,10 +123,10 @@ pub struct Smoothing {
 
 /// Replace each pixel's gathered light in `image` (seen through `camera`) by the value at
 /// its point of a weighted linear fit to its neighbours' on its surface, separably: a fit
-/// along each row ([`fit_along`] over x), then a fit of those along each column (over y).
+/// along each row ([`Line::fit`] over x), then a fit of those along each column (over y).
 /// On a plane a linear field passes both unchanged, and the two 1D windows of 2w + 1 pixels
-/// average about as many gathers as one square window of (2w + 1)^2 at a ninth of the cost
-/// for w = 8. A pure function of the pass's pixels: the same bytes whatever the threads.
+/// average about as many gathers as one square window of (2w + 1)^2 at about a ninth of its
+/// cost for w = 8. A pure function of the pass's pixels: the same bytes whatever the threads.
 pub fn smooth_gathers(image: &mut Image, pixels: &[GatherPixel], s: Smoothing, camera: &Camera) {
     let line = Line {
         surfaces: &pixels.iter().map(GatherPixel::surface).collect::<Vec<_>>(),
@@ -340,5 +341,14 @@ mod tests {
         let g = |x: u32, y: u32, _| Rgb::splat(((x * 7 + y * 13) % 5) as f32);
         let (before, after) = smoothed(g, |_| Rgb::ONE, 0.05);
         assert_eq!(before, after);
+    }
+
+    /// The memory estimate (`run/budget.rs`, `smoothing_bytes`) counts a pixel's record at
+    /// 60 bytes and its surface at 56.
+    #[test]
+    fn records_are_no_larger_than_the_memory_estimate_counts() {
+        assert!(std::mem::size_of::<GatherPixel>() <= 60);
+        assert!(std::mem::size_of::<Option<Surface>>() <= 56);
+        assert!(std::mem::size_of::<(Vec3, f32)>() <= 16);
     }
 }

@@ -18,7 +18,8 @@ use crate::render::stats::{RenderStats, StatsInput, collect};
 use crate::spec::{Progressive, RenderSpec};
 
 /// The most pixels a smoothed gather reads along each axis (`integrator/smooth.rs`): a
-/// bound on its cost, about a tenth of a pass with final gathering at 8.
+/// bound on its cost (with 8, a pass of `auto`'s gathering took 4-5% more CPU than
+/// unsmoothed on cornell and knot: docs/performance-history.md, "smoothed final gathers").
 const SMOOTHING_WINDOW: u32 = 8;
 
 /// Progressive photon mapping's passes over one scene and spec.

@@ -24,11 +24,11 @@ pub struct Needs {
 }
 
 /// Bytes a pixel for ppm's smoothed gathers (`render/integrator/smooth.rs`), where they
-/// run: the film's record of each pixel's gathers (56, held twice while the tiles are
+/// run: the film's record of each pixel's gathers (60, held twice while the tiles are
 /// joined), their surfaces (56) and the fits along the rows (16).
 fn smoothing_bytes(spec: &RenderSpec) -> u64 {
     match &spec.integrator {
-        Integrator::Ppm(p) if p.gather_smoothing > 0.0 && p.pass.gather_rays > 0 => 184,
+        Integrator::Ppm(p) if p.gather_smoothing > 0.0 && p.pass.gather_rays > 0 => 192,
         _ => 0,
     }
 }
