@@ -481,6 +481,20 @@ const CUBE_CORNER: &str = r#"{
 /// hits within a radius of their quad's edges bouncing too, 0.998 to 1.002.
 #[test]
 fn gathering_keeps_a_corners_edges_as_bright_as_a_path_tracer() {
+    corner_blocks_against_pt(0.0, 16, 0.006);
+}
+
+/// The same with the gathers smoothed between pixels (`auto`'s 5 global radii over
+/// sqrt(pass), `integrator/smooth.rs`): the blur it adds in the corner's edges, where the
+/// light falls off faster than a line, fades as the passes go on.
+#[test]
+fn smoothed_gathers_fade_to_a_path_tracer_s_corner() {
+    corner_blocks_against_pt(5.0, 64, 0.006);
+}
+
+/// ppm with final gathering (smoothed within `smoothing` radii) after `passes`, against
+/// `pt` in the cube's corner by 6x6-pixel blocks: every block within `tolerance`.
+fn corner_blocks_against_pt(smoothing: f32, passes: u32, tolerance: f64) {
     let s = scene(CUBE_CORNER);
     let pt = Passes {
         spp: 1,
@@ -494,7 +508,8 @@ fn gathering_keeps_a_corners_edges_as_bright_as_a_path_tracer() {
             ..PhotonMapping::PPM_PASS
         },
         radius: Some(0.15),
-        stop: Stop::after(16),
+        gather_smoothing: smoothing,
+        stop: Stop::after(passes),
         ..Progressive::DEFAULT
     };
     let gathered = common::render_checked(&s, &RenderSpec::ppm(gathering)).image;
@@ -508,9 +523,11 @@ fn gathering_keeps_a_corners_edges_as_bright_as_a_path_tracer() {
     let (lo, hi) = ratios
         .iter()
         .fold((f64::MAX, f64::MIN), |(lo, hi), &r| (lo.min(r), hi.max(r)));
-    eprintln!("cube corner, gathering over pt by 6x6 blocks: {lo:.4} to {hi:.4}");
+    eprintln!(
+        "cube corner, gathering (smoothing {smoothing}) over pt by 6x6 blocks: {lo:.4} to {hi:.4}"
+    );
     assert!(
-        lo > 0.994 && hi < 1.006,
+        lo > 1.0 - tolerance && hi < 1.0 + tolerance,
         "blocks from {lo:.4} to {hi:.4} of pt's"
     );
 }
