@@ -196,8 +196,9 @@ pub(super) enum GatherShape {
 }
 
 /// How far `auto`'s gathering shares a pass's gathers between pixels, in global-map radii
-/// (`render/integrator/smooth.rs`); chosen among 3, 5 and 8 on cornell and cornell_spheres
-/// (docs/performance-history.md, "smoothed final gathers").
+/// (`render/integrator/smooth.rs`); of 3, 5 and 8 on cornell, 3 helped least at the first
+/// pass and 8 blurred most by the 16th (docs/performance-history.md, "smoothed final
+/// gathers").
 const GATHER_SMOOTHING: f32 = 5.0;
 
 /// The longest time limit (given alone) under which `auto`'s gathering traces half of
