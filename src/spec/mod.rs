@@ -137,6 +137,14 @@ pub struct Progressive {
     pub stop: Stop,
 }
 
+impl Progressive {
+    /// Whether its passes smooth their final gathers (`render/integrator/smooth.rs`): with
+    /// final gathering and a positive `gather_smoothing`.
+    pub fn smooths_gathers(&self) -> bool {
+        self.gather_smoothing > 0.0 && self.pass.gather_rays > 0
+    }
+}
+
 /// When a progressive render stops: the first condition met wins; at least one pass runs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Stop {

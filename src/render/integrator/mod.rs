@@ -30,7 +30,7 @@ mod shade;
 mod smooth;
 
 pub use shade::{Samples, Scratch, Shader};
-pub use smooth::{GatherPixel, Smoothing, smooth_gathers};
+pub use smooth::{GatherPixel, smooth_gathers};
 
 use crate::render::photon::{ClassMask, PathClass};
 use crate::spec::{EffectSwitches, PhotonStore, RenderSpec};

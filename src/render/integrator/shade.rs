@@ -73,7 +73,8 @@ const GATHER_CHECK: u32 = 64;
 #[derive(Default)]
 pub struct Scratch {
     density: DensityScratch,
-    /// The last camera sample's gather (with [`Shader::record_gathers`]).
+    /// The last camera sample's gather (with [`Shader::record_gathers`]), which the film
+    /// takes after every sample (`film.rs`, `add_extra`).
     pub gather: Option<GatherSample>,
 }
 
@@ -123,7 +124,6 @@ impl<'p> Segment<'p> {
 impl Shader<'_> {
     /// Radiance arriving at the camera along `ray`.
     pub fn camera_ray(&self, ray: &Ray, s: &mut Sampler, scratch: &mut Scratch) -> Rgb {
-        scratch.gather = None;
         let seg = Segment {
             depth: 0,
             emission: Emission::Count,

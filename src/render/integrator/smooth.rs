@@ -40,6 +40,11 @@ const SAME_NORMAL: f32 = 0.9;
 /// ... and the one lies at most this fraction of the kernel's radius off the other's plane.
 const PLANE_FRACTION: f32 = 0.1;
 
+/// The most pixels a fit reads along each axis: a bound on its cost (with 8, a pass of
+/// `auto`'s gathering took 4-5% more CPU than unsmoothed on cornell and knot:
+/// docs/performance-history.md, "smoothed final gathers").
+const MAX_WINDOW: usize = 8;
+
 /// A pixel's samples gathered on two surfaces when the line between their points leaves
 /// the first's plane by more than this sine (30 degrees): a silhouette, not a slope.
 const MIXED_SINE: f32 = 0.5;
@@ -113,25 +118,18 @@ struct Surface {
     count: f32,
 }
 
-/// How far a pass shares gathers: points within `radius` (scene units), read from at most
-/// `max_window` pixels away along each axis (the bound on a pixel's cost).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Smoothing {
-    pub radius: f32,
-    pub max_window: u32,
-}
-
 /// Replace each pixel's gathered light in `image` (seen through `camera`) by the value at
-/// its point of a weighted linear fit to its neighbours' on its surface, separably: a fit
+/// its point of a weighted linear fit to its neighbours' on its surface within `radius`
+/// (scene units) and [`MAX_WINDOW`] pixels, separably: a fit
 /// along each row ([`Line::fit`] over x), then a fit of those along each column (over y).
 /// On a plane a linear field passes both unchanged, and the two 1D windows of 2w + 1 pixels
 /// average about as many gathers as one square window of (2w + 1)^2 at about a ninth of its
 /// cost for w = 8. A pure function of the pass's pixels: the same bytes whatever the threads.
-pub fn smooth_gathers(image: &mut Image, pixels: &[GatherPixel], s: Smoothing, camera: &Camera) {
+pub fn smooth_gathers(image: &mut Image, pixels: &[GatherPixel], radius: f32, camera: &Camera) {
     let line = Line {
         surfaces: &pixels.iter().map(GatherPixel::surface).collect::<Vec<_>>(),
         width: image.width as usize,
-        smoothing: s,
+        radius,
         camera,
     };
     let rows: Vec<(Vec3, f32)> = (0..pixels.len())
@@ -161,19 +159,18 @@ pub fn smooth_gathers(image: &mut Image, pixels: &[GatherPixel], s: Smoothing, c
 struct Line<'a> {
     surfaces: &'a [Option<Surface>],
     width: usize,
-    smoothing: Smoothing,
+    radius: f32,
     camera: &'a Camera,
 }
 
 impl Line<'_> {
-    /// How many pixels the kernel about `me` spans on the film along each axis, at most the
-    /// smoothing's window.
+    /// How many pixels the kernel about `me` spans on the film along each axis, at most
+    /// [`MAX_WINDOW`].
     fn window(&self, me: &Surface) -> usize {
         let camera = self.camera;
         let depth = (Vec3A::from(me.p) - camera.position).dot(camera.forward());
-        let reach =
-            self.smoothing.radius * camera.image_plane_distance() / depth.max(f32::MIN_POSITIVE);
-        reach.ceil().min(self.smoothing.max_window as f32) as usize
+        let reach = self.radius * camera.image_plane_distance() / depth.max(f32::MIN_POSITIVE);
+        reach.ceil().min(MAX_WINDOW as f32) as usize
     }
 
     /// The weighted linear fit, along the line through pixel `i` in steps of `step` pixels
@@ -193,7 +190,7 @@ impl Line<'_> {
         } else {
             (i / w, (len - 1 - i) / w)
         };
-        let r = self.smoothing.radius;
+        let r = self.radius;
         let (r2, plane) = (r * r, PLANE_FRACTION * r);
         let (p, n) = (Vec3A::from(me.p), Vec3A::from(me.n));
         let [mut s0, mut s1, mut s2] = [0.0f32; 3];
@@ -277,11 +274,8 @@ mod tests {
             }
         }
         let before = image.clone();
-        let s = Smoothing {
-            radius,
-            max_window: 8,
-        };
-        smooth_gathers(&mut image, &pixels, s, &c);
+
+        smooth_gathers(&mut image, &pixels, radius, &c);
         (before, image)
     }
 

@@ -9,18 +9,13 @@ use crate::render::camera::Camera;
 use crate::render::control::Control;
 use crate::render::effects::Analysis;
 use crate::render::film::render_film;
-use crate::render::integrator::{Samples, Shader, Smoothing, smooth_gathers};
+use crate::render::integrator::{Samples, Shader, smooth_gathers};
 use crate::render::outcome::RenderError;
 use crate::render::photon::{Density, PhotonMap, PhotonMaps, RadiusLookup, build_photon_maps};
 use crate::render::progressive::{PassAt, PassOutput, PassResult, Progression};
 use crate::render::scene::Scene;
 use crate::render::stats::{RenderStats, StatsInput, collect};
 use crate::spec::{Progressive, RenderSpec};
-
-/// The most pixels a smoothed gather reads along each axis (`integrator/smooth.rs`): a
-/// bound on its cost (with 8, a pass of `auto`'s gathering took 4-5% more CPU than
-/// unsmoothed on cornell and knot: docs/performance-history.md, "smoothed final gathers").
-const SMOOTHING_WINDOW: u32 = 8;
 
 /// Progressive photon mapping's passes over one scene and spec.
 pub(crate) struct PpmPasses<'a> {
@@ -52,18 +47,16 @@ impl<'a> PpmPasses<'a> {
         }
     }
 
-    /// How pass `pass` smooths its final gathers (`integrator/smooth.rs`), if it does: within
-    /// `gather_smoothing` times the global map's radius `r_global` over sqrt(pass). The
-    /// map's radius shrinks as n^((alpha - 1) / 2); the extra 1 / sqrt(n) makes the blur
-    /// fade fast enough that the passes' mean is no blurrier than ppm's own after a few
-    /// dozen passes (measured: docs/performance-history.md, "smoothed final gathers").
-    fn smoothing(&self, pass: u32, r_global: f32) -> Option<Smoothing> {
+    /// The radius within which pass `pass` smooths its final gathers (`integrator/smooth.rs`),
+    /// if it does: `gather_smoothing` times the global map's radius `r_global` over
+    /// sqrt(pass). The map's radius shrinks as n^((alpha - 1) / 2); the extra 1 / sqrt(n)
+    /// makes the blur fade fast enough that the passes' mean is no blurrier than ppm's own
+    /// after a few dozen passes (measured: docs/performance-history.md, "smoothed final
+    /// gathers"). None where the camera's points gather nothing (`--no-indirect`).
+    fn smoothing_radius(&self, pass: u32, r_global: f32) -> Option<f32> {
         let radius = self.ppm.gather_smoothing * r_global / (pass as f32).sqrt();
-        let gathers = self.ppm.pass.gather_rays > 0 && self.analysis.plan.primary.gather;
-        (gathers && radius > 0.0 && radius.is_finite()).then_some(Smoothing {
-            radius,
-            max_window: SMOOTHING_WINDOW,
-        })
+        let smooths = self.ppm.smooths_gathers() && self.analysis.plan.primary.gather;
+        (smooths && radius > 0.0 && radius.is_finite()).then_some(radius)
     }
 
     /// The initial radii, given or from the first pass's photons.
@@ -102,6 +95,7 @@ impl Progression for PpmPasses<'_> {
             m.as_ref().map(|m| Density::Radius(RadiusLookup::new(m, r)))
         }
         let spp = self.ppm.pass.spp;
+        let smoothing = self.smoothing_radius(pass, radii.0);
         let shader = Shader {
             scene: self.scene,
             plan: self.analysis.plan,
@@ -117,17 +111,12 @@ impl Progression for PpmPasses<'_> {
                 seed: self.spec.seed,
                 first: (pass as u64 - 1) * spp as u64,
             },
-            record_gathers: false,
-        };
-        let smoothing = self.smoothing(pass, radii.0);
-        let shader = Shader {
             record_gathers: smoothing.is_some(),
-            ..shader
         };
         let t_render = Instant::now();
         let mut film = render_film(&shader, &self.camera, spp, control)?;
-        if let Some(s) = smoothing {
-            smooth_gathers(&mut film.image, &film.extra, s, &self.camera);
+        if let Some(radius) = smoothing {
+            smooth_gathers(&mut film.image, &film.extra, radius, &self.camera);
         }
         let render = t_render.elapsed().as_secs_f64();
         drop(shader);

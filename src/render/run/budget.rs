@@ -28,7 +28,7 @@ pub struct Needs {
 /// joined), their surfaces (56) and the fits along the rows (16).
 fn smoothing_bytes(spec: &RenderSpec) -> u64 {
     match &spec.integrator {
-        Integrator::Ppm(p) if p.gather_smoothing > 0.0 && p.pass.gather_rays > 0 => 192,
+        Integrator::Ppm(p) if p.smooths_gathers() => 192,
         _ => 0,
     }
 }
