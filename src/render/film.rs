@@ -60,8 +60,8 @@ pub(crate) trait CameraPaths: Sync {
 
     fn radiance(&self, ray: &Ray, pixel: u64, s: &mut Sampler, scratch: &mut Self::Scratch) -> Rgb;
 
-    /// Sample `j` of `pixel`'s random numbers.
-    fn sampler(&self, pixel: u64, j: u32) -> Sampler;
+    /// Sample `j`'s random numbers at `pixel`, which is at column and row `xy`.
+    fn sampler(&self, pixel: u64, xy: [u32; 2], j: u32) -> Sampler;
 
     /// Whether the film keeps each pixel's [`CameraPaths::Extra`]: if not, none is made.
     fn keeps_extra(&self) -> bool {
@@ -77,15 +77,17 @@ impl CameraPaths for Shader<'_> {
     type Scratch = Scratch;
     type Extra = GatherPixel;
 
-    /// Point `first + j` of the pixel's own scrambled Sobol sequence (`qmc.rs`,
+    /// Point `first + j` of the pixel's own scrambled Sobol sequence (`render/qmc`,
     /// [`crate::render::integrator::Samples`]): a pixel's samples, over all the passes of a
     /// progressive render, are stratified in their jitter, their light samples and, through
     /// [`Sampler::branch`], in their final gathers' directions together (measured:
-    /// docs/performance-history.md, "quasi-random samples for the camera pass").
+    /// docs/performance-history.md, "quasi-random samples for the camera pass"); the
+    /// gathers' directions are also interleaved between the pixels of a tile
+    /// ([`crate::render::qmc::SobolStream::interleaved`]).
     #[inline]
-    fn sampler(&self, pixel: u64, j: u32) -> Sampler {
+    fn sampler(&self, pixel: u64, xy: [u32; 2], j: u32) -> Sampler {
         let Samples { seed, first } = self.samples;
-        Sampler::sobol(seed, Stream::Camera, pixel, first + j as u64)
+        Sampler::sobol_interleaved(seed, Stream::Camera, pixel, xy, first + j as u64)
     }
 
     #[inline]
@@ -143,7 +145,7 @@ impl PixelSum {
 }
 
 /// Render every pixel with `spp` jittered samples. Sample j of pixel i draws its random
-/// numbers from `paths.sampler(i, j)` alone, so the image is bit-identical whatever the
+/// numbers from `paths.sampler(i, [x, y], j)` alone, so the image is bit-identical whatever the
 /// number of threads.
 ///
 /// The cancel flag is read after every sample: a tile of 4096 samples a pixel with 512
@@ -202,7 +204,7 @@ pub(crate) fn render_film_rows<P: CameraPaths>(
                     let mut px = PixelSum::default();
                     let at = (y - y0) as usize * tw + (x - x0) as usize;
                     for j in 0..spp {
-                        let mut s = paths.sampler(pixel, j);
+                        let mut s = paths.sampler(pixel, [x, y_start + y], j);
                         let jitter = s.next_2d();
                         let y_image = (y_start + y) as f32;
                         let ray = camera.ray(x as f32 + jitter.x, y_image + jitter.y);

@@ -55,6 +55,20 @@ impl Sampler {
         }
     }
 
+    /// [`Sampler::sobol`] for the pixel at `xy`, interleaved between the pixels of its
+    /// tile ([`SobolStream::interleaved`]).
+    pub fn sobol_interleaved(
+        seed: u64,
+        stream: Stream,
+        pixel: u64,
+        xy: [u32; 2],
+        n: u64,
+    ) -> Sampler {
+        Sampler {
+            source: Source::Sobol(SobolStream::interleaved(seed, stream, pixel, xy, n)),
+        }
+    }
+
     /// Branch `k` of `count` from this sample (the rays of a final gather): for a Sobol
     /// stream, a stream such that the branches of all of a pixel's samples are one
     /// stratified sequence ([`SobolStream::branch`]); for independent numbers, a stream
@@ -125,7 +139,7 @@ pub fn uniform_sphere(u: Vec2) -> Vec3A {
 /// u.y), not Shirley and Chiu's concentric one: it has no branch and no division, and for
 /// independent samples the two are equivalent (measured: docs/performance-history.md,
 /// "polar map for cosine sampling"). Both preserve area, so the stratified points of the
-/// bidirectional family (`qmc.rs`) stay stratified on the disk, in strata of poorer shape
+/// bidirectional family (`render/qmc`) stay stratified on the disk, in strata of poorer shape
 /// near its centre (Shirley and Chiu 1997); untested against the concentric map there.
 #[inline]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3A {

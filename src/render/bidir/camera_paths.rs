@@ -42,9 +42,9 @@ impl CameraPaths for CameraPass<'_> {
     type Scratch = ();
     type Extra = ();
 
-    /// The pixel's point of its own Sobol sequence at this iteration (`qmc.rs`): one
+    /// The pixel's point of its own Sobol sequence at this iteration (`render/qmc`): one
     /// sample a pixel per iteration, so only the pixel names it.
-    fn sampler(&self, pixel: u64, _: u32) -> Sampler {
+    fn sampler(&self, pixel: u64, _: [u32; 2], _: u32) -> Sampler {
         self.it.sampler(Stream::Camera, pixel)
     }
 

@@ -88,7 +88,7 @@ pub(super) struct Iteration<'a> {
     factors: Factors,
     max_depth: u32,
     effects: EffectSwitches,
-    /// The seed of the subpaths' Sobol sequences (`qmc.rs`): the render's (the pilot's
+    /// The seed of the subpaths' Sobol sequences (`render/qmc`): the render's (the pilot's
     /// own for the pilot iteration).
     seed: u64,
     /// This iteration's index among all passes' iterations (0-based): the point of every
