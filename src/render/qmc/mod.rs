@@ -1,5 +1,6 @@
-//! Quasi-random streams for the progressive path integrators (pt, lt, bdpt, vcm): iteration n
-//! of a pixel (or of a light-path slot) draws the n-th point of an Owen-scrambled Sobol
+//! Quasi-random streams for the progressive path integrators (pt, lt, bdpt, vcm) and the
+//! camera passes of raytrace, photon and ppm: iteration n of a pixel (or of a light-path
+//! slot) draws the n-th point of an Owen-scrambled Sobol
 //! sequence of its own, so that across iterations the first 2D and 4D projections of every
 //! path (the pixel position, the first bounce, the light sample) are stratified instead of
 //! independent. Same expectation, lower variance: the error of a path tracer with an
@@ -10,8 +11,9 @@
 //! hash). Dimensions are padded as Burley proposes: every four dimensions reuse the
 //! sequence's first four under a new seed, so each 4D set is stratified within itself and
 //! independent of the others. Each draw is a pure function of (seed, stream, index,
-//! iteration, dimension): the bytes do not depend on the thread count, and a resumed render
-//! continues the same sequences.
+//! iteration, dimension), and for a final gather's interleaved rays of the pixel's column
+//! and row too ([`SobolStream::interleaved`]): the bytes do not depend on the thread count,
+//! and a resumed render continues the same sequences.
 
 use std::sync::OnceLock;
 
@@ -40,20 +42,37 @@ pub struct SobolStream {
     dim: u32,
     /// The current 4D set's coordinates.
     set: [f32; 4],
-    /// On a branch of an interleaved stream: its first 4D set's sequence, the tile's,
-    /// and the pixel's shift of it.
-    first_set: Option<Shifted>,
-    /// On an interleaved stream ([`SobolStream::interleaved`]): the tile's sequence of
-    /// branches and the pixel's shift, for [`SobolStream::branch`].
-    interleave: Option<Shifted>,
+    /// What the pixel's tile shares with this stream, if it is interleaved.
+    tile: Tile,
 }
 
-/// A sequence the pixels of a tile share, and one pixel's shift of it (XORed, its bits
-/// reversed as the sequence's are before they are read).
+/// A stream's part in the interleaving of a tile's final gathers
+/// ([`SobolStream::interleaved`]).
 #[derive(Clone, Copy)]
-struct Shifted {
+enum Tile {
+    /// Not interleaved.
+    Own,
+    /// A camera sample's stream: its branches are interleaved, from the tile's sequence
+    /// of branches under `seed`.
+    Branches(Slot),
+    /// A branch: its first 4D set is the point of the tile's sequence under `seed`,
+    /// shifted by the slot's.
+    FirstSet(Slot),
+}
+
+/// A sequence the pixels of a tile share, and the pixel's place among them.
+#[derive(Clone, Copy)]
+struct Slot {
     seed: u64,
-    shift: Int4,
+    /// The pixel's position along the tile's Z-order curve.
+    slot: u32,
+}
+
+/// The seed of a sequence of `stream` (its kind mixed in as `tag`) for `index` at
+/// iteration `n`: each block of [`BLOCK`] iterations a fresh one.
+fn sequence_seed(seed: u64, tag: u64, index: u64, n: u64) -> u64 {
+    let a = splitmix64(seed ^ splitmix64(tag));
+    splitmix64(a ^ splitmix64(index) ^ splitmix64(n / BLOCK).rotate_left(17))
 }
 
 /// Pixels a side of a tile whose final gathers are interleaved: 16 x 16 lowered the
@@ -64,6 +83,7 @@ const TILE_SIDE: u32 = 16;
 /// The bits of each coordinate that a pixel's shift sets: the Sobol sequence's first
 /// `TILE_SIDE^2` points are multiples of 2^-SLOT_BITS.
 const SLOT_BITS: u32 = 2 * TILE_SIDE.ilog2();
+const _: () = assert!(TILE_SIDE.is_power_of_two() && SLOT_BITS <= 8);
 
 /// Mixed into a tile's seed.
 const TILE: u64 = 0x7469_6c65_0000_0000;
@@ -71,15 +91,12 @@ const TILE: u64 = 0x7469_6c65_0000_0000;
 impl SobolStream {
     /// The stream of path `index` of `stream` at iteration `n` (0-based).
     pub fn new(seed: u64, stream: Stream, index: u64, n: u64) -> SobolStream {
-        let a = splitmix64(seed ^ splitmix64(stream as u64 | 0x716d_6300_0000_0000));
-        let b = splitmix64(a ^ splitmix64(index) ^ splitmix64(n / BLOCK).rotate_left(17));
         SobolStream {
             index: (n % BLOCK) as u32,
-            seed: b,
+            seed: sequence_seed(seed, stream as u64 | 0x716d_6300_0000_0000, index, n),
             dim: 0,
             set: [0.0; 4],
-            first_set: None,
-            interleave: None,
+            tile: Tile::Own,
         }
     }
 
@@ -100,13 +117,11 @@ impl SobolStream {
     /// few passes.
     pub fn interleaved(seed: u64, stream: Stream, pixel: u64, [x, y]: [u32; 2], n: u64) -> Self {
         let tile = (x / TILE_SIDE) as u64 | ((y / TILE_SIDE) as u64) << 32;
-        let a = splitmix64(seed ^ splitmix64(stream as u64 | TILE));
-        let shared = splitmix64(a ^ splitmix64(tile) ^ splitmix64(n / BLOCK).rotate_left(17));
-        let slot = morton(x % TILE_SIDE, y % TILE_SIDE);
+        let shared = sequence_seed(seed, stream as u64 | TILE, tile, n);
         SobolStream {
-            interleave: Some(Shifted {
+            tile: Tile::Branches(Slot {
                 seed: splitmix64(shared ^ BRANCH),
-                shift: sobol_int4_rev(slot.reverse_bits(), 0),
+                slot: morton(x % TILE_SIDE, y % TILE_SIDE),
             }),
             ..SobolStream::new(seed, stream, pixel, n)
         }
@@ -125,11 +140,13 @@ impl SobolStream {
             seed: splitmix64(self.seed ^ BRANCH ^ block),
             dim: 0,
             set: [0.0; 4],
-            first_set: self.interleave.map(|t| Shifted {
-                seed: splitmix64(t.seed ^ block),
-                shift: t.shift,
-            }),
-            interleave: None,
+            tile: match self.tile {
+                Tile::Branches(t) => Tile::FirstSet(Slot {
+                    seed: splitmix64(t.seed ^ block),
+                    ..t
+                }),
+                _ => Tile::Own,
+            },
         }
     }
 
@@ -162,8 +179,11 @@ impl SobolStream {
     #[inline]
     fn refill(&mut self) {
         let set = (self.dim >> 2) as u64;
-        self.set = match self.first_set {
-            Some(Shifted { seed, shift }) if set == 0 => {
+        self.set = match self.tile {
+            Tile::FirstSet(Slot { seed, slot }) if set == 0 => {
+                // The slot's point of the Sobol sequence, its bits reversed: the table
+                // of indices whose set bits are in the top byte.
+                let shift = tables().high[(slot.reverse_bits() >> 24) as usize];
                 let shifted = first_four_rev(self.index, seed as u32) ^ shift;
                 scramble_within_slot(shifted, self.seed)
                     .reverse_bits()
@@ -206,9 +226,10 @@ fn first_four_rev(index: u32, seed: u32) -> Int4 {
     owen_scramble_int4_rev(sobol, hash_int4(scramble))
 }
 
-/// `x_rev` (bits reversed) with the bits below [`SLOT_BITS`] Owen-scrambled under `seed`
-/// (each flip a hash of the bits above it: a nested scramble, Owen 1995), the bits a
-/// shift sets kept. Without it a tile's pixels, once their own points fill the shifts'
+/// `x_rev` (fractions with their bits reversed) with every bit finer than the top
+/// [`SLOT_BITS`] of the fraction (bit `SLOT_BITS` and up of `x_rev`) Owen-scrambled under
+/// `seed` (each flip a hash of the coarser bits: a nested scramble, Owen 1995), the bits
+/// a shift sets kept. Without it a tile's pixels, once their own points fill the shifts'
 /// grid, would hold the same offsets within its cells, only in other cells (an XOR shift
 /// swaps whole cells), and their errors would go together.
 #[inline]

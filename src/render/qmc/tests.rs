@@ -132,12 +132,34 @@ fn a_tile_s_branches_are_stratified_together() {
 }
 
 /// A pixel's interleaved branches over its samples are still one stratified set, as in
-/// [`branches_of_a_sequence_s_points_are_stratified_together`].
+/// [`branches_of_a_sequence_s_points_are_stratified_together`], at scales finer than the
+/// shifts' grid too (512 points); the sample's own draws are those of its own sequence.
 #[test]
 fn an_interleaved_pixel_s_branches_stay_stratified() {
     for xy in [[0, 0], [5, 9], [37, 250]] {
         let streams = |j| SobolStream::interleaved(5, Stream::Camera, 77, xy, j);
-        assert_one_per_strip(&gathers(streams, 16, 4), &format!("{xy:?}"));
+        assert_one_per_strip(&gathers(streams, 128, 4), &format!("{xy:?}"));
+        let mut own = SobolStream::new(5, Stream::Camera, 77, 3);
+        let mut interleaved = SobolStream::interleaved(5, Stream::Camera, 77, xy, 3);
+        for _ in 0..9 {
+            assert_eq!(own.next_f32(), interleaved.next_f32());
+        }
+    }
+}
+
+/// Every aligned 4 x 4 square of a tile holds a 16-point net of its own (the slots run
+/// along the Z-order curve): one of its branches in each of 16 strips of each coordinate.
+#[test]
+fn every_aligned_square_of_a_tile_is_stratified() {
+    for (x0, y0) in [(0, 0), (4, 8), (12, 12)] {
+        let mut points = Vec::new();
+        for y in y0..y0 + 4 {
+            for x in x0..x0 + 4 {
+                let s = SobolStream::interleaved(2, Stream::Camera, (y * 64 + x) as u64, [x, y], 5);
+                points.push(s.branch(1, 4).next_2d());
+            }
+        }
+        assert_one_per_strip(&points, &format!("square at {x0}, {y0}"));
     }
 }
 
