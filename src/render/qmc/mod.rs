@@ -242,10 +242,10 @@ fn scramble_within_slot(x_rev: Int4, seed: u64) -> Int4 {
     (x_rev & slot) | (fine & below)
 }
 
-/// The position of `[x, y]` along the Z-order curve: the pixels of every aligned square of
-/// 2^k a side hold 4^k consecutive positions.
+/// The position of `[x, y]` (each below [`TILE_SIDE`]) along the Z-order curve: the pixels
+/// of every aligned square of 2^k a side hold 4^k consecutive positions.
 fn morton(x: u32, y: u32) -> u32 {
-    (0..16).fold(0, |m, b| {
+    (0..TILE_SIDE.ilog2()).fold(0, |m, b| {
         m | ((x >> b) & 1) << (2 * b) | ((y >> b) & 1) << (2 * b + 1)
     })
 }
