@@ -485,7 +485,7 @@ fn gathering_keeps_a_corners_edges_as_bright_as_a_path_tracer() {
 }
 
 /// The same with the gathers smoothed between pixels (`auto`'s 5 global radii over
-/// sqrt(pass), `integrator/smooth.rs`): the blur it adds in the corner's edges, where the
+/// pass^0.35, `integrator/smooth.rs`): the blur it adds in the corner's edges, where the
 /// light falls off faster than a line, fades as the passes go on.
 #[test]
 fn smoothed_gathers_fade_to_a_path_tracer_s_corner() {

@@ -179,7 +179,7 @@ pub struct SpecForm {
     pub radius: Option<f32>,
     /// ppm with final gathering: share each pass's gathers at the points the camera sees
     /// between neighbouring pixels on one surface, within this many global-map radii over
-    /// sqrt(pass) (0: none; auto's gathering: 5).
+    /// pass^0.35 (0: none; auto's gathering: 5).
     #[serde(skip_serializing_if = "Option::is_none")]
     #[arg(long)]
     pub gather_smoothing: Option<f32>,

@@ -132,7 +132,7 @@ pub struct Progressive {
     pub radius: Option<f32>,
     /// With final gathering: each pass shares the gathers at the points the camera sees
     /// between neighbouring pixels on one surface, within this many global-map radii over
-    /// sqrt(pass) (`render/integrator/smooth.rs`); 0 shares none.
+    /// pass^0.35 (`render/integrator/smooth.rs`); 0 shares none.
     pub gather_smoothing: f32,
     pub stop: Stop,
 }

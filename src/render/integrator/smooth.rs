@@ -7,13 +7,13 @@
 //! the value at its point of a weighted linear fit (local linear regression) to the gathers
 //! of the pixels about it whose points lie on its surface: its plane, its normal and its
 //! reflectance, within a radius that is a multiple of the pass's global-map radius over
-//! sqrt(pass) (`ppm/passes.rs`). That radius shrinks faster than the map's (Knaus and
-//! Zwicker 2011), so each pass's blur vanishes as the passes go on and the mean of the
-//! passes converges, while the first passes show the noise of many pixels' gathers instead
-//! of one's. A fit rather than
-//! a mean: where the kernel is cut (the image's border, a corner's other wall) a mean would
-//! lean toward the side that remains by the light's gradient there; a fit follows it.
-//! Measured in docs/performance-history.md, "smoothed final gathers".
+//! pass^0.35 (`ppm/passes.rs`, `SMOOTHING_FADE`). That radius shrinks faster than the map's
+//! (Knaus and Zwicker 2011), so each pass's blur vanishes as the passes go on and the mean
+//! of the passes converges, while the first passes show the noise of many pixels' gathers
+//! instead of one's. A fit rather than a mean: where the kernel is cut (the image's border,
+//! a corner's other wall) a mean would lean toward the side that remains by the light's
+//! gradient there; a fit follows it. Measured in docs/performance-history.md, "smoothed
+//! final gathers" and "smoothing on planes, fading slower".
 
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
@@ -34,10 +34,18 @@ pub struct GatherSample {
     pub rho: Rgb,
 }
 
-/// Two points lie on one surface when the cosine between their normals is at least this...
-const SAME_NORMAL: f32 = 0.9;
+/// Two points lie on one surface when the cosine between their normals is at least this
+/// (8 degrees): a plane, or a surface that curves little within the kernel. Across a
+/// tighter curve the light is not near linear in the pixel's position (a tube's light turns
+/// with its normal, and falls into the creases where it faces other surfaces), and a fit
+/// there brightened the surface: with 0.9 (25 degrees) knot's tube read 2.2% above the
+/// reference after one pass and 0.6% after 16, when its blocks held twice the block_err
+/// they hold unsmoothed (docs/performance-history.md, "smoothing on planes, fading
+/// slower").
+const SAME_NORMAL: f32 = 0.99;
 
-/// ... and the one lies at most this fraction of the kernel's radius off the other's plane.
+/// Two points with such normals lie on one surface when the one lies at most this fraction
+/// of the kernel's radius off the other's plane.
 const PLANE_FRACTION: f32 = 0.1;
 
 /// The most pixels a fit reads along each axis: a bound on its cost (with 8, a pass of
@@ -250,11 +258,25 @@ mod tests {
         ray.o + ray.d * (-ray.o.z / ray.d.z)
     }
 
-    /// One gathering sample a pixel, of `g(x, y, point)` on reflectance `rho(x)`, the image
-    /// what the film holds (rho g), smoothed within `radius`.
+    /// One gathering sample a pixel, of `g(x, y, point)` on reflectance `rho(x)`, facing the
+    /// camera, the image what the film holds (rho g), smoothed within `radius`.
     fn smoothed(
         g: impl Fn(u32, u32, Vec3A) -> Rgb,
         rho: impl Fn(u32) -> Rgb,
+        radius: f32,
+    ) -> (Image, Image) {
+        let sample = |x, y, p| GatherSample {
+            p,
+            n: -Vec3A::Z,
+            g: g(x, y, p),
+            rho: rho(x),
+        };
+        smoothed_samples(sample, radius)
+    }
+
+    /// The same for any sample `sample(x, y, point)` at each pixel's point.
+    fn smoothed_samples(
+        sample: impl Fn(u32, u32, Vec3A) -> GatherSample,
         radius: f32,
     ) -> (Image, Image) {
         let c = camera();
@@ -263,12 +285,7 @@ mod tests {
         for y in 0..W {
             for x in 0..W {
                 let (i, p) = ((y * W + x) as usize, point(&c, x, y));
-                let sample = GatherSample {
-                    p,
-                    n: -Vec3A::Z,
-                    g: g(x, y, p),
-                    rho: rho(x),
-                };
+                let sample = sample(x, y, p);
                 pixels[i].add(true, Some(sample));
                 image.pixels[i] = (sample.rho * sample.g).to_array();
             }
@@ -326,6 +343,25 @@ mod tests {
         let (before, after) = smoothed(g, rho, 1.0);
         let d = max_difference(&before, &after);
         assert!(d < 1e-5, "mixed across the step by {d}");
+    }
+
+    /// A surface that curves (its normal turning 10 degrees from pixel to pixel along each
+    /// row, as across a thin tube) lends nothing along it, though its points lie within the
+    /// radius (each row another reflectance, so that columns lend nothing either).
+    #[test]
+    fn a_curved_surface_lends_nothing() {
+        let sample = |x: u32, y: u32, p| {
+            let turn = (x as f32 * 10.0).to_radians();
+            GatherSample {
+                p,
+                n: Vec3A::new(turn.sin(), 0.0, -turn.cos()),
+                g: Rgb::splat(((x * 7 + y * 13) % 5) as f32),
+                rho: Rgb::splat(0.5 + y as f32 / 256.0),
+            }
+        };
+        let (before, after) = smoothed_samples(sample, 1.0);
+        let d = max_difference(&before, &after);
+        assert!(before == after, "shared across the curve by {d}");
     }
 
     /// Nothing is shared beyond the radius: with a radius just under the pixels' spacing

@@ -17,6 +17,17 @@ use crate::render::scene::Scene;
 use crate::render::stats::{RenderStats, StatsInput, collect};
 use crate::spec::{Progressive, RenderSpec};
 
+/// How fast the smoothing's blur fades over the passes, beyond the global map's own
+/// shrinking (n^((alpha - 1) / 2)): its radius falls as pass^-SMOOTHING_FADE. After a few
+/// passes the error left is the gathers' noise, not the blur (on knot the mean of two
+/// seeds' renders has 1/sqrt(2) of either's block_err), so a fade slower than the first
+/// choice, 0.5, pays: with 0.35 block_err after 4 and 16 passes 2-4% lower on cornell and
+/// knot, relmse after 16 and 64 passes 10-40% lower, block_err the same after 256 passes on
+/// cornell; 0.25 raised cornell_spheres' block_err after 64 passes by 7%, and no extra fade
+/// at all after 16 by 40% (docs/performance-history.md, "smoothing on planes, fading
+/// slower").
+const SMOOTHING_FADE: f32 = 0.35;
+
 /// Progressive photon mapping's passes over one scene and spec.
 pub(crate) struct PpmPasses<'a> {
     pub scene: &'a Scene,
@@ -49,12 +60,10 @@ impl<'a> PpmPasses<'a> {
 
     /// The radius within which pass `pass` smooths its final gathers (`integrator/smooth.rs`),
     /// if it does: `gather_smoothing` times the global map's radius `r_global` over
-    /// sqrt(pass). The map's radius shrinks as n^((alpha - 1) / 2); the extra 1 / sqrt(n)
-    /// makes the blur fade fast enough that the passes' mean is no blurrier than ppm's own
-    /// after a few dozen passes (measured: docs/performance-history.md, "smoothed final
-    /// gathers"). None where the camera's points gather nothing (`--no-indirect`).
+    /// pass^[`SMOOTHING_FADE`]. None where the camera's points gather nothing
+    /// (`--no-indirect`).
     fn smoothing_radius(&self, pass: u32, r_global: f32) -> Option<f32> {
-        let radius = self.ppm.gather_smoothing * r_global / (pass as f32).sqrt();
+        let radius = self.ppm.gather_smoothing * r_global / (pass as f32).powf(SMOOTHING_FADE);
         let smooths = self.ppm.smooths_gathers() && self.analysis.plan.primary.gather;
         (smooths && radius > 0.0 && radius.is_finite()).then_some(radius)
     }

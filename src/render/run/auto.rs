@@ -268,7 +268,7 @@ fn bdpt_or_gathering(
              scene's indirect light, so progressive photon mapping with final gathering \
              ({} rays a camera sample, {} spp a pass, stratified over the passes, shared \
              between neighbouring pixels on one surface within {} global radii over \
-             sqrt(pass)) reads the rest from the global map ({} photons a pass)",
+             pass^0.35) reads the rest from the global map ({} photons a pass)",
             ppm.pass.gather_rays, ppm.pass.spp, ppm.gather_smoothing, ppm.pass.photons
         );
         (Integrator::Ppm(ppm), why)
