@@ -486,7 +486,8 @@ fn gathering_keeps_a_corners_edges_as_bright_as_a_path_tracer() {
 
 /// The same with the gathers smoothed between pixels (`auto`'s 5 global radii over
 /// pass^0.35, `integrator/smooth.rs`): the blur it adds in the corner's edges, where the
-/// light falls off faster than a line, fades as the passes go on.
+/// light falls off faster than a line, fades as the passes go on. Measured 0.9953-1.0004
+/// after 64 passes; with no fade (`SMOOTHING_FADE` 0) 0.9875, which fails.
 #[test]
 fn smoothed_gathers_fade_to_a_path_tracer_s_corner() {
     corner_blocks_against_pt(5.0, 64, 0.006);

@@ -38,10 +38,11 @@ pub struct GatherSample {
 /// (8 degrees): a plane, or a surface that curves little within the kernel. Across a
 /// tighter curve the light is not near linear in the pixel's position (a tube's light turns
 /// with its normal, and falls into the creases where it faces other surfaces), and a fit
-/// there brightened the surface: with 0.9 (25 degrees) knot's tube read 2.2% above the
+/// there brightened the surface: with 0.9 (26 degrees) knot's tube read 2.2% above the
 /// reference after one pass and 0.6% after 16, when its blocks held twice the block_err
 /// they hold unsmoothed (docs/performance-history.md, "smoothing on planes, fading
-/// slower").
+/// slower"). The same bound marks a pixel whose samples' normals differ by more as mixed
+/// (`GatherPixel::add`): on such a curve, with two samples a pixel, many pixels are.
 const SAME_NORMAL: f32 = 0.99;
 
 /// Two points with such normals lie on one surface when the one lies at most this fraction
@@ -346,12 +347,13 @@ mod tests {
     }
 
     /// A surface that curves (its normal turning 10 degrees from pixel to pixel along each
-    /// row, as across a thin tube) lends nothing along it, though its points lie within the
-    /// radius (each row another reflectance, so that columns lend nothing either).
+    /// row, as across a thin tube, between -40 and 40 degrees and back, never the same
+    /// within a window) lends nothing along it, though its points lie within the radius (each
+    /// row another reflectance, so that columns lend nothing either).
     #[test]
     fn a_curved_surface_lends_nothing() {
         let sample = |x: u32, y: u32, p| {
-            let turn = (x as f32 * 10.0).to_radians();
+            let turn = ((x % 9) as f32 * 10.0 - 40.0).to_radians();
             GatherSample {
                 p,
                 n: Vec3A::new(turn.sin(), 0.0, -turn.cos()),

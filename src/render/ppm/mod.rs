@@ -18,7 +18,7 @@ mod state;
 mod sum;
 
 pub use crate::render::stats::{PassStats, PassTotals, PpmReport, StopReason};
-pub(crate) use passes::PpmPasses;
+pub(crate) use passes::{PpmPasses, SMOOTHING_FADE};
 pub use state::{PpmState, StateError, kept_in_history};
 pub use sum::PassSum;
 

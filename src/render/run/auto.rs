@@ -29,6 +29,7 @@ use super::Chosen;
 use super::pilot::run_pilot;
 use crate::render::control::Control;
 use crate::render::outcome::RenderError;
+use crate::render::ppm::SMOOTHING_FADE;
 use crate::render::scene::Scene;
 use crate::render::stats::{AutoChoice, Effect};
 use crate::spec::{Integrator, Merging, Passes, PhotonMapping, Progressive, RenderSpec, SpecForm};
@@ -198,7 +199,8 @@ pub(super) enum GatherShape {
 /// How far `auto`'s gathering shares a pass's gathers between pixels, in global-map radii
 /// (`render/integrator/smooth.rs`); of 3, 5 and 8 on cornell, 3 helped least at the first
 /// pass and 8 blurred most by the 16th (docs/performance-history.md, "smoothed final
-/// gathers").
+/// gathers"). Chosen when the radius faded as pass^-0.5, and not measured again since it
+/// fades more slowly (`ppm::SMOOTHING_FADE`).
 const GATHER_SMOOTHING: f32 = 5.0;
 
 /// The longest time limit (given alone) under which `auto`'s gathering traces half of
@@ -268,8 +270,12 @@ fn bdpt_or_gathering(
              scene's indirect light, so progressive photon mapping with final gathering \
              ({} rays a camera sample, {} spp a pass, stratified over the passes, shared \
              between neighbouring pixels on one surface within {} global radii over \
-             pass^0.35) reads the rest from the global map ({} photons a pass)",
-            ppm.pass.gather_rays, ppm.pass.spp, ppm.gather_smoothing, ppm.pass.photons
+             pass^{}) reads the rest from the global map ({} photons a pass)",
+            ppm.pass.gather_rays,
+            ppm.pass.spp,
+            ppm.gather_smoothing,
+            SMOOTHING_FADE,
+            ppm.pass.photons
         );
         (Integrator::Ppm(ppm), why)
     })
