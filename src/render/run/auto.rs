@@ -199,8 +199,9 @@ pub(super) enum GatherShape {
 /// How far `auto`'s gathering shares a pass's gathers between pixels, in global-map radii
 /// (`render/integrator/smooth.rs`); of 3, 5 and 8 on cornell, 3 helped least at the first
 /// pass and 8 blurred most by the 16th (docs/performance-history.md, "smoothed final
-/// gathers"). Chosen when the radius faded as pass^-0.5, and not measured again since it
-/// fades more slowly (`ppm::SMOOTHING_FADE`).
+/// gathers"). Chosen when the radius faded as pass^-0.5; with the slower fade
+/// (`ppm::SMOOTHING_FADE`) 3.5 raised block_err after 1, 4 and 16 passes by 2-6% on knot and
+/// cornell, 7 moved it 1-3% either way ("smoothing on planes, fading slower").
 const GATHER_SMOOTHING: f32 = 5.0;
 
 /// The longest time limit (given alone) under which `auto`'s gathering traces half of
