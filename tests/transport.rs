@@ -9,7 +9,7 @@ mod common;
 use common::{WALL_PATCH, rel, render_image, scene};
 use photonbox::render::accuracy::compare;
 use photonbox::render::photon::PhotonStore;
-use photonbox::spec::{PhotonMapping, RenderSpec};
+use photonbox::spec::{EffectSwitches, PhotonMapping, RenderSpec};
 
 /// A box with a glossy Phong floor, a mirror sphere and a glass sphere, lit by a quad light
 /// whose reflection in the mirror falls on the floor's glossy lobe.
@@ -140,5 +140,63 @@ fn a_pixel_s_gather_rays_are_stratified_over_its_samples() {
     assert!(
         relmse < 0.04,
         "relmse {relmse:.4} between seeds: the gather directions are not stratified"
+    );
+}
+
+/// Shadow rays to an area light at the point the camera sees (`shadow_rays`, `auto`'s
+/// gathering takes 2): the same image mean, less noise. A floor under a quad light and a
+/// point light, half in the soft shadow of a plate; direct light only, so what differs from
+/// seed to seed is the shadow rays' noise. A point light still takes one ray: counted once
+/// per branch, or the branches' sum divided wrongly, the mean would move (by 13% and
+/// 260%, measured). Measured (32x32, 16 samples): the mean with 8 rays 0.9990 of one
+/// ray's; relmse between seeds 1 and 2 falls from 0.00288 to 0.00043.
+#[test]
+fn more_shadow_rays_to_an_area_light_lower_its_noise_not_its_mean() {
+    let s = scene(
+        r#"{
+      "camera": {"position": [0, 2.2, 2.2], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov": 50,
+                 "width": 32, "height": 32},
+      "materials": {"white": {"type": "diffuse", "albedo": [0.7, 0.7, 0.7]}},
+      "objects": [
+        {"type": "quad", "material": "white", "corner": [-2, 0, -2], "edge_u": [0, 0, 4], "edge_v": [4, 0, 0]},
+        {"type": "quad", "material": "white", "corner": [-0.5, 0.6, -0.5], "edge_u": [1, 0, 0], "edge_v": [0, 0, 1]}
+      ],
+      "lights": [
+        {"type": "quad", "corner": [-0.6, 1.5, -0.6], "edge_u": [1.2, 0, 0], "edge_v": [0, 0, 1.2],
+         "radiance": [6, 6, 6]},
+        {"type": "point", "position": [1.2, 1.8, 0.8], "power": [20, 20, 20]}
+      ]
+    }"#,
+    );
+    let render = |shadow_rays, seed| {
+        let mut params = RenderSpec::photon(PhotonMapping {
+            gather_rays: 0,
+            shadow_rays,
+            spp: 16,
+            photons: 1_000,
+            caustic_photons: 0,
+            ..PhotonMapping::PHOTON
+        });
+        params.effects = EffectSwitches {
+            direct_light: true,
+            caustics: false,
+            diffuse_interreflection: false,
+        };
+        params.seed = seed;
+        render_image(&s, &params)
+    };
+    let mean = |img: &photonbox::render::Image| {
+        let m = img.mean_rgb(0, 0, 32, 32);
+        (m[0] + m[1] + m[2]) / 3.0
+    };
+    let (one, eight) = ((render(1, 1), render(1, 2)), (render(8, 1), render(8, 2)));
+    let (m1, m8) = (mean(&one.0), mean(&eight.0));
+    let noise1 = compare(&one.0, &one.1).unwrap().relmse;
+    let noise8 = compare(&eight.0, &eight.1).unwrap().relmse;
+    eprintln!("mean {m1:.5} -> {m8:.5}; relmse between seeds {noise1:.5} -> {noise8:.5}");
+    assert!(rel(m8, m1).abs() < 0.005, "means {m8} vs {m1}");
+    assert!(
+        noise8 < noise1 / 4.0,
+        "relmse between seeds {noise8} with 8 shadow rays, {noise1} with one"
     );
 }

@@ -9,7 +9,7 @@ use std::f32::consts::{FRAC_1_PI, TAU};
 use glam::{Vec2, Vec3A};
 
 use crate::render::math::sin_cos_turns;
-use crate::render::qmc::SobolStream;
+use crate::render::qmc::{Branch, SobolStream};
 use rand::Rng;
 use rand_pcg::Pcg64Mcg;
 
@@ -69,17 +69,17 @@ impl Sampler {
         }
     }
 
-    /// Branch `k` of `count` from this sample (the rays of a final gather): for a Sobol
-    /// stream, a stream such that the branches of all of a pixel's samples are one
-    /// stratified sequence ([`SobolStream::branch`]); for independent numbers, a stream
-    /// seeded from this one's next number.
-    pub fn branch(&mut self, k: u32, count: u32) -> Sampler {
+    /// Branch `k` of `count` of `kind` from this sample (the rays of a final gather, the
+    /// shadow rays to an area light): for a Sobol stream, a stream such that the branches
+    /// of all of a pixel's samples are one stratified sequence ([`SobolStream::branch`]);
+    /// for independent numbers, a stream seeded from this one's next number.
+    pub fn branch(&mut self, kind: Branch, k: u32, count: u32) -> Sampler {
         let source = match &mut self.source {
             Source::Independent(rng) => {
                 let state = ((rng.random::<u64>() as u128) << 64) | splitmix64(k as u64) as u128;
                 Source::Independent(Pcg64Mcg::new(state))
             }
-            Source::Sobol(q) => Source::Sobol(q.branch(k, count)),
+            Source::Sobol(q) => Source::Sobol(q.branch(kind, k, count)),
         };
         Sampler { source }
     }

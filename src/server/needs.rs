@@ -131,20 +131,20 @@ impl JobNeeds {
         let (what, fewer) = if spec.stop().is_some_and(|s| s.until_time()) {
             (
                 "one pass of this job",
-                "samples, gather rays, pixels or photons",
+                "samples, gather or shadow rays, pixels or photons",
             )
         } else {
             (
                 "this job",
-                "samples, gather rays, pixels, photons or passes",
+                "samples, gather or shadow rays, pixels, photons or passes",
             )
         };
         if needs.work > limits.max_work {
             return Err(ApiError::invalid(
                 "params",
                 format!(
-                    "{what} is an estimated {:.3e} ray samples of work (pixels x spp x (1 + \
-                     gather_rays), photons, passes), more than the server's limit of {:.3e} \
+                    "{what} is an estimated {:.3e} ray samples of work (pixels x spp x \
+                     (gather_rays + shadow_rays), photons, passes), more than the server's limit of {:.3e} \
                      (fewer {fewer} would fit)",
                     needs.work, limits.max_work
                 ),

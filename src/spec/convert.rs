@@ -137,6 +137,7 @@ impl SpecForm {
         p.k = self.k.unwrap_or(p.k);
         p.photon_store = self.photon_store.map_or(p.photon_store, PhotonStore::from);
         p.gather_rays = self.gather_rays.unwrap_or(p.gather_rays);
+        p.shadow_rays = self.shadow_rays.unwrap_or(p.shadow_rays);
         p.spp = self.spp.unwrap_or(p.spp);
         p.aim_caustics = self.aim_caustics.unwrap_or(p.aim_caustics);
     }
@@ -201,6 +202,7 @@ impl SpecForm {
         self.k = Some(p.k);
         self.photon_store = Some(p.photon_store.into());
         self.gather_rays = Some(p.gather_rays);
+        self.shadow_rays = Some(p.shadow_rays);
         self.spp = Some(p.spp);
         self.aim_caustics = Some(p.aim_caustics);
     }

@@ -14,6 +14,7 @@ impl PhotonMapping {
         k: 50,
         photon_store: PhotonStore::Indirect,
         gather_rays: 8,
+        shadow_rays: 1,
         spp: 4,
         aim_caustics: true,
     };

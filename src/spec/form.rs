@@ -146,6 +146,11 @@ pub struct SpecForm {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[arg(long)]
     pub gather_rays: Option<u32>,
+    /// Shadow rays to each area light per camera sample where the camera sees a
+    /// non-specular surface (a point light takes one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(long)]
+    pub shadow_rays: Option<u32>,
     /// Jittered samples per pixel (progressive integrators: per pass).
     #[serde(skip_serializing_if = "Option::is_none")]
     #[arg(long)]

@@ -114,6 +114,10 @@ pub struct PhotonMapping {
     pub photon_store: PhotonStore,
     /// Final-gather rays per camera sample at the first diffuse point; 0 reads the global map.
     pub gather_rays: u32,
+    /// Shadow rays to each area light per camera sample at the first non-specular point (a
+    /// point light takes one): soft shadows and a large light's extent are most of what is
+    /// left of a pixel's noise once gathers are shared (`auto`'s gathering takes 2).
+    pub shadow_rays: u32,
     /// Jittered samples per pixel (box filter).
     pub spp: u32,
     /// Aim caustic photons at the specular objects; false emits them in every direction, as

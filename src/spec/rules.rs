@@ -84,6 +84,7 @@ pub const RULES: &[Rule] = &[
     rule("caustic_photons", Scope::PhotonMaps, int(0, MAX_PHOTONS)),
     rule("k", Scope::PhotonMaps, int(1, 100_000)),
     rule("gather_rays", Scope::PhotonMaps, int(0, 65_536)),
+    rule("shadow_rays", Scope::PhotonMaps, int(1, 256)),
     rule("spp", Scope::Any, int(1, 65_536)),
     rule("max_depth", Scope::Any, int(1, 1024)),
     rule(
@@ -180,7 +181,7 @@ pub fn check_numbers(f: &SpecForm) -> Result<(), SpecError> {
 impl SpecForm {
     /// The form's numbers by name, as f64 (every integer the form takes is exact in f64 up
     /// to its range's maximum, and beyond it still compares as beyond).
-    pub(super) fn numbers(&self) -> [(&'static str, Option<f64>); 15] {
+    pub(super) fn numbers(&self) -> [(&'static str, Option<f64>); 16] {
         let u = |v: Option<u64>| v.map(|v| v as f64);
         let u32 = |v: Option<u32>| v.map(f64::from);
         [
@@ -190,6 +191,7 @@ impl SpecForm {
             ("caustic_photons", u(self.caustic_photons)),
             ("k", self.k.map(|k| k as f64)),
             ("gather_rays", u32(self.gather_rays)),
+            ("shadow_rays", u32(self.shadow_rays)),
             ("spp", u32(self.spp)),
             ("max_depth", u32(self.max_depth)),
             ("iterations", u32(self.iterations)),

@@ -46,6 +46,8 @@ fn every_integrator_gives_the_cli_s_bytes_over_rest() {
                "gather_rays": 2, "spp": 1, "seed": 7, "effects": {"direct_light": false}}),
         json!({"integrator": "ppm", "photons": 10000, "caustic_photons": 10000,
                "iterations": 3, "alpha": 0.6, "photon_store": "all"}),
+        json!({"integrator": "ppm", "photons": 10000, "caustic_photons": 0, "iterations": 2,
+               "gather_rays": 2, "gather_smoothing": 3, "shadow_rays": 3}),
         json!({"integrator": "pt", "iterations": 2, "spp": 2}),
         json!({"integrator": "lt", "iterations": 2}),
         json!({"integrator": "bdpt", "iterations": 2, "max_depth": 5}),

@@ -26,6 +26,7 @@
 //! the map's disc is seen up close or reaches past the surface (`shade.rs`,
 //! `NEAR_GATHER_RADII`).
 
+mod direct;
 mod shade;
 mod smooth;
 
@@ -40,6 +41,9 @@ use crate::spec::{EffectSwitches, PhotonStore, RenderSpec};
 pub struct VertexPlan {
     /// Direct light by shadow rays (full BSDF).
     pub shadow_rays: bool,
+    /// Shadow rays to each area light (a point light takes one): more than one only where
+    /// the camera's paths first reach a non-specular surface (`PhotonMapping::shadow_rays`).
+    pub area_shadow_rays: u32,
     /// Caustics from the caustic map.
     pub caustic_map: bool,
     /// Global-map classes read here (through the irradiance cache).
@@ -56,6 +60,7 @@ pub struct VertexPlan {
 impl VertexPlan {
     const NOTHING: VertexPlan = VertexPlan {
         shadow_rays: false,
+        area_shadow_rays: 1,
         caustic_map: false,
         global: ClassMask::NONE,
         gather: false,
@@ -94,6 +99,7 @@ impl Plan {
             }
             VertexPlan {
                 shadow_rays: v.shadow_rays && e.direct_light,
+                area_shadow_rays: v.area_shadow_rays,
                 caustic_map: v.caustic_map && e.caustics,
                 global: ClassMask(global),
                 gather: v.gather && e.diffuse_interreflection,
@@ -147,6 +153,7 @@ impl Plan {
                 };
                 let secondary = VertexPlan {
                     shadow_rays: indirect,
+                    area_shadow_rays: 1,
                     caustic_map: true,
                     global: read(&[Indirect]),
                     gather: false,
@@ -154,14 +161,17 @@ impl Plan {
                     glossy_rays: true,
                 };
                 let gather = p.gather_rays > 0;
-                let primary = if gather {
-                    VertexPlan {
-                        global: read(&[]),
-                        gather: true,
-                        ..secondary
+                let primary = VertexPlan {
+                    area_shadow_rays: p.shadow_rays.max(1),
+                    ..if gather {
+                        VertexPlan {
+                            global: read(&[]),
+                            gather: true,
+                            ..secondary
+                        }
+                    } else {
+                        secondary
                     }
-                } else {
-                    secondary
                 };
                 let (gather_hit, gather_near) = if gather {
                     let hit = VertexPlan {

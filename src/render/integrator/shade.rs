@@ -7,10 +7,11 @@ use glam::Vec3A;
 use super::smooth::GatherSample;
 use super::{Plan, VertexPlan};
 use crate::render::control::Control;
-use crate::render::geometry::{Hit, Ray, Surface, SurfacePoint, spawn_ray, spawn_ray_to};
+use crate::render::geometry::{Hit, Ray, Surface, SurfacePoint, spawn_ray};
 use crate::render::material::{Material, SpecularBranch, Transport};
 use crate::render::math::{Frame, Rgb, luminance, reflect};
 use crate::render::photon::{ClassMask, Density, DensityScratch};
+use crate::render::qmc::Branch;
 use crate::render::sampling::{Sampler, cosine_hemisphere, power_cosine};
 use crate::render::scene::Scene;
 
@@ -215,7 +216,7 @@ impl Shader<'_> {
         let rho = m.diffuse_reflectance();
         let mut l = Rgb::ZERO;
         if vertex.shadow_rays {
-            l += self.direct_light(m, sp, wo, s);
+            l += self.direct_light(m, sp, wo, vertex.area_shadow_rays, s);
         }
         if rho != Rgb::ZERO {
             if vertex.caustic_map
@@ -296,28 +297,6 @@ impl Shader<'_> {
         weight * self.trace(&spawn_ray(sp, wi), next, s, scratch)
     }
 
-    /// Direct light by one shadow ray per light (Jensen 2001, section 9.1.1).
-    fn direct_light(&self, m: &Material, sp: &SurfacePoint, wo: Vec3A, s: &mut Sampler) -> Rgb {
-        let mut l = Rgb::ZERO;
-        for light in &self.scene.lights {
-            let u = s.next_2d();
-            let Some(ls) = light.sample_li_by_solid_angle(sp.p, u) else {
-                continue;
-            };
-            let f = m.eval(wo, ls.wi, sp.n);
-            if f == Rgb::ZERO || ls.li_over_pdf == Rgb::ZERO {
-                continue;
-            }
-            let Some((ray, wi, _)) = spawn_ray_to(sp, ls.target, ls.prim) else {
-                continue;
-            };
-            if !self.scene.occluded(&ray) {
-                l += f * wi.dot(sp.n).abs() * ls.li_over_pdf;
-            }
-        }
-        l
-    }
-
     /// Final gathering (Jensen 2001, section 9.1.4): the mean radiance over cosine-sampled
     /// directions of the hemisphere, read at the first non-specular hit of each gather ray.
     /// Multiplied by rho this is the indirect diffuse radiance at the point. Gather ray i
@@ -340,7 +319,7 @@ impl Shader<'_> {
             if i % GATHER_CHECK == GATHER_CHECK - 1 && self.control.check().is_err() {
                 break;
             }
-            let mut b = s.branch(i, self.gather_rays);
+            let mut b = s.branch(Branch::Gather, i, self.gather_rays);
             let wi = frame.to_world(cosine_hemisphere(b.next_2d()));
             sum += self.trace(&spawn_ray(sp, wi), seg, &mut b, scratch);
         }

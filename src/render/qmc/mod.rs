@@ -31,6 +31,25 @@ const BLOCK: u64 = 1 << 16;
 /// Mixed into a stream's seed for the sequence of its branches.
 const BRANCH: u64 = 0x6272_616e_6368_0000;
 
+/// What a stream's branches are for: each kind is a sequence of its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Branch {
+    /// A final gather's rays (interleaved in an interleaved stream).
+    Gather,
+    /// The shadow rays to an area light beyond a sample's first (the pixel's own).
+    Shadow,
+}
+
+impl Branch {
+    /// Mixed into the stream's seed.
+    fn tag(self) -> u64 {
+        match self {
+            Branch::Gather => BRANCH,
+            Branch::Shadow => BRANCH ^ 0x0000_0000_0000_5348,
+        }
+    }
+}
+
 /// A stream of one path's quasi-random numbers: the `n`-th point of its own sequence, one
 /// coordinate per draw.
 pub struct SobolStream {
@@ -127,21 +146,22 @@ impl SobolStream {
         }
     }
 
-    /// Branch `k` of `count` leaving this point (a final gather's rays): point
-    /// `index * count + k` of a sequence of its own, so that the branches of the first n
-    /// points of this sequence are the first n * count points of theirs, stratified
-    /// together (a pixel's gather rays over all of its samples). In an interleaved stream
-    /// the branches' first sets are interleaved too, from the tile's sequence of branches.
-    pub fn branch(&self, k: u32, count: u32) -> SobolStream {
+    /// Branch `k` of `count` of `kind` leaving this point (a final gather's rays, a
+    /// sample's shadow rays): point `index * count + k` of a sequence of its own, so that
+    /// the branches of the first n points of this sequence are the first n * count points
+    /// of theirs, stratified together (a pixel's gather rays over all of its samples). In
+    /// an interleaved stream a gather's branches' first sets are interleaved too, from the
+    /// tile's sequence of branches.
+    pub fn branch(&self, kind: Branch, k: u32, count: u32) -> SobolStream {
         let wide = self.index as u64 * count as u64 + k as u64;
         let block = splitmix64(wide / BLOCK);
         SobolStream {
             index: (wide % BLOCK) as u32,
-            seed: splitmix64(self.seed ^ BRANCH ^ block),
+            seed: splitmix64(self.seed ^ kind.tag() ^ block),
             dim: 0,
             set: [0.0; 4],
             tile: match self.tile {
-                Tile::Branches(t) => Tile::FirstSet(Slot {
+                Tile::Branches(t) if kind == Branch::Gather => Tile::FirstSet(Slot {
                     seed: splitmix64(t.seed ^ block),
                     ..t
                 }),

@@ -51,7 +51,7 @@ fn gathers(stream: impl Fn(u64) -> SobolStream, points: u64, branches: u32) -> V
     for j in 0..points {
         let mut s = stream(j);
         s.next_2d();
-        out.extend((0..branches).map(|k| s.branch(k, branches).next_2d()));
+        out.extend((0..branches).map(|k| s.branch(Branch::Gather, k, branches).next_2d()));
     }
     out
 }
@@ -118,7 +118,7 @@ fn a_tile_s_branches_are_stratified_together() {
             for x in side..2 * side {
                 let pixel = y as u64 * 1000 + x as u64;
                 let s = SobolStream::interleaved(5, Stream::Camera, pixel, [x, y], 7);
-                points.push(s.branch(k, count).next_2d());
+                points.push(s.branch(Branch::Gather, k, count).next_2d());
             }
         }
         assert_one_per_strip(&points, &format!("branch {k}"));
@@ -156,7 +156,7 @@ fn every_aligned_square_of_a_tile_is_stratified() {
         for y in y0..y0 + 4 {
             for x in x0..x0 + 4 {
                 let s = SobolStream::interleaved(2, Stream::Camera, (y * 64 + x) as u64, [x, y], 5);
-                points.push(s.branch(1, 4).next_2d());
+                points.push(s.branch(Branch::Gather, 1, 4).next_2d());
             }
         }
         assert_one_per_strip(&points, &format!("square at {x0}, {y0}"));
@@ -174,7 +174,11 @@ fn interleaved_pixels_differ_within_the_shifts_grid() {
         let (mut offsets, mut later) = (Vec::new(), Vec::new());
         for j in 0..n as u64 {
             let pixel = xy[1] as u64 * 256 + xy[0] as u64;
-            let mut b = SobolStream::interleaved(3, Stream::Camera, pixel, xy, j).branch(0, 1);
+            let mut b = SobolStream::interleaved(3, Stream::Camera, pixel, xy, j).branch(
+                Branch::Gather,
+                0,
+                1,
+            );
             let [x, _] = b.next_2d();
             offsets.push((x * 16_777_216.0) as u32 & ((1 << (24 - SLOT_BITS)) - 1));
             b.next_2d();
@@ -203,7 +207,7 @@ fn interleaved_branches_are_uniform_on_average() {
     for p in 0..count {
         let xy = [(p * 7) % 61, (p * 13) % 59];
         let s = SobolStream::interleaved(p as u64, Stream::Camera, 5, xy, (p % 5) as u64);
-        let mut b = s.branch(p % 3, 3);
+        let mut b = s.branch(Branch::Gather, p % 3, 3);
         for d in sum.iter_mut() {
             *d += b.next_f32() as f64;
         }

@@ -204,6 +204,16 @@ pub(super) enum GatherShape {
 /// cornell, 7 moved it 1-3% either way ("smoothing on planes, fading slower").
 const GATHER_SMOOTHING: f32 = 5.0;
 
+/// Shadow rays to each area light per camera sample in `auto`'s gathering: with gathers
+/// shared between pixels, what is left of a pixel's noise under an area light is mostly its
+/// direct light (soft shadows, the light's extent). Knot after 4 passes (seed 7 against 8):
+/// relmse 0.00260, 0.00082 and 0.00060 with 1, 2 and 4, for passes 9% and 16% dearer. 4
+/// gains little more after the first passes while its cost grows as the radius shrinks: in
+/// the race 2 reached Mitsuba's error sooner than both runs of 4 in 11 of knot's and
+/// cornell's 16 cells, later in 3 (relmse at 16 and 64 s, met either way)
+/// (docs/performance-history.md, "more shadow rays where the camera looks").
+pub(super) const SHADOW_RAYS: u32 = 2;
+
 /// The longest time limit (given alone) under which `auto`'s gathering traces half of
 /// `ppm`'s photons a pass ([`gathering`]).
 const SHORT_LIMIT: f64 = 4.0;
@@ -233,6 +243,7 @@ pub(super) fn gathering(passes: &Passes, shape: GatherShape) -> Progressive {
             photons: full.photons / share,
             caustic_photons: full.caustic_photons / share,
             k: full.k / share as usize,
+            shadow_rays: SHADOW_RAYS,
             ..full
         },
         gather_smoothing: GATHER_SMOOTHING,
@@ -271,12 +282,14 @@ fn bdpt_or_gathering(
              scene's indirect light, so progressive photon mapping with final gathering \
              ({} rays a camera sample, {} spp a pass, stratified over the passes, shared \
              between neighbouring pixels on one surface within {} global radii over \
-             pass^{}) reads the rest from the global map ({} photons a pass)",
+             pass^{}) reads the rest from the global map ({} photons a pass); direct light \
+             where the camera looks by {} shadow rays a sample to each area light",
             ppm.pass.gather_rays,
             ppm.pass.spp,
             ppm.gather_smoothing,
             SMOOTHING_FADE,
-            ppm.pass.photons
+            ppm.pass.photons,
+            ppm.pass.shadow_rays
         );
         (Integrator::Ppm(ppm), why)
     })

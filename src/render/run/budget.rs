@@ -5,7 +5,7 @@
 use super::auto::{self, GatherShape};
 use crate::render::control::{Phase, Progress};
 use crate::render::scene::Scene;
-use crate::spec::{Integrator, RenderSpec, Stop};
+use crate::spec::{Integrator, PhotonMapping, RenderSpec, Stop};
 
 /// What a render needs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -121,17 +121,19 @@ fn work_passes(stop: &Stop) -> f64 {
 }
 
 fn work(spec: &RenderSpec, pixels: u64) -> f64 {
-    let camera =
-        |spp: u32, gather_rays: u32| pixels as f64 * spp as f64 * (1.0 + gather_rays as f64);
+    // A camera ray, its gather rays and its shadow rays beyond the first (each area light's
+    // extra rays: counted as one light's).
+    let camera = |spp: u32, more_rays: u32| pixels as f64 * spp as f64 * (1.0 + more_rays as f64);
+    let mapping_rays = |p: &PhotonMapping| p.gather_rays.saturating_add(p.shadow_rays.max(1) - 1);
     match &spec.integrator {
         Integrator::Raytrace(r) => camera(r.spp, 0),
         Integrator::Photon(p) => {
             let photons = (p.photons + p.caustic_photons) as f64;
-            camera(p.spp, p.gather_rays) + photons + p.photons as f64 / 4.0 * p.k as f64
+            camera(p.spp, mapping_rays(p)) + photons + p.photons as f64 / 4.0 * p.k as f64
         }
         Integrator::Ppm(p) => {
             let photons = (p.pass.photons + p.pass.caustic_photons) as f64;
-            (camera(p.pass.spp, p.pass.gather_rays) + photons) * work_passes(&p.stop)
+            (camera(p.pass.spp, mapping_rays(&p.pass)) + photons) * work_passes(&p.stop)
         }
         // A light and a camera subpath per sample, each a few rays (the connections and
         // shadow rays of its vertices): counted as 8 rays a sample.

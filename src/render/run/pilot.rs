@@ -166,6 +166,9 @@ pub(super) fn run_pilot(
     // blur, which a variance does not charge, so it would tip the choice toward gathering
     // where its gather rays find the light poorly (a washed wall).
     gathering.gather_smoothing = 0.0;
+    // One shadow ray a light, as the thresholds were measured (more lowers gathering's
+    // variance under an area light: the choice stays the one made before they were added).
+    gathering.pass.shadow_rays = 1;
     let gathering = pass_variance(&pair(&Integrator::Ppm(gathering))?, &bdpt_pair);
     Ok(Pilot {
         pt,
