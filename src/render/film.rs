@@ -88,7 +88,8 @@ impl CameraPaths for Shader<'_> {
     fn sampler(&self, pixel: u64, xy: [u32; 2], j: u32) -> Sampler {
         let Samples { seed, first } = self.samples;
         let n = first + j as u64;
-        // Only gathers draw branches: without them the tile's seed would go unused.
+        // Only gathers draw interleaved branches (shadow rays' branches are the pixel's
+        // own): without them the tile's seed would go unused.
         match self.gather_rays {
             0 => Sampler::sobol(seed, Stream::Camera, pixel, n),
             _ => Sampler::sobol_interleaved(seed, Stream::Camera, pixel, xy, n),

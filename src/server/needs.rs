@@ -144,8 +144,8 @@ impl JobNeeds {
                 "params",
                 format!(
                     "{what} is an estimated {:.3e} ray samples of work (pixels x spp x \
-                     (gather_rays + shadow_rays), photons, passes), more than the server's limit of {:.3e} \
-                     (fewer {fewer} would fit)",
+                     (gather_rays + shadow_rays), photons, passes), more than the server's \
+                     limit of {:.3e} (fewer {fewer} would fit)",
                     needs.work, limits.max_work
                 ),
             ));

@@ -115,7 +115,8 @@ pub struct PhotonMapping {
     /// Final-gather rays per camera sample at the first diffuse point; 0 reads the global map.
     pub gather_rays: u32,
     /// Shadow rays to each area light per camera sample at the first non-specular point (a
-    /// point light takes one): soft shadows and a large light's extent are most of what is
+    /// point light takes one; read where direct light is by shadow rays, `photon_store`
+    /// indirect): soft shadows and a large light's extent are most of what is
     /// left of a pixel's noise once gathers are shared (`auto`'s gathering takes 2).
     pub shadow_rays: u32,
     /// Jittered samples per pixel (box filter).

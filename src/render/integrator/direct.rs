@@ -16,6 +16,9 @@ impl Shader<'_> {
     /// lights come from branches of its stream ([`Branch::Shadow`]), so that over a pixel's
     /// samples and passes they are one stratified set (the pixel's soft shadows and the
     /// light's extent seen from it); with one, from the sample's own stream, as every ray.
+    /// The branches depend on the sample alone: where a camera path splits at glass both
+    /// branches' points draw the same shadow-ray points (correlated, not biased; final
+    /// gathers share their branches the same way).
     pub(super) fn direct_light(
         &self,
         m: &Material,
@@ -25,18 +28,18 @@ impl Shader<'_> {
         s: &mut Sampler,
     ) -> Rgb {
         if area_rays <= 1 {
-            return self.shadow_rays(m, sp, wo, |_| true, s);
+            return self.one_ray_each(m, sp, wo, |_| true, s);
         }
         let mut area = Rgb::ZERO;
         for k in 0..area_rays {
             let mut b = s.branch(Branch::Shadow, k, area_rays);
-            area += self.shadow_rays(m, sp, wo, |light| !light.is_delta(), &mut b);
+            area += self.one_ray_each(m, sp, wo, |light| !light.is_delta(), &mut b);
         }
-        self.shadow_rays(m, sp, wo, Light::is_delta, s) + area / area_rays as f32
+        self.one_ray_each(m, sp, wo, Light::is_delta, s) + area / area_rays as f32
     }
 
     /// One shadow ray to each light that `to` picks, its point on the light from `s`.
-    fn shadow_rays(
+    fn one_ray_each(
         &self,
         m: &Material,
         sp: &SurfacePoint,
