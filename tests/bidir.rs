@@ -259,12 +259,14 @@ fn auto_gathers_in_an_open_room_connects_off_a_washed_wall_and_merges_behind_gla
     };
     // auto.rs, `GatherShape`: 4 gather rays at 2 samples a pixel where the pilot's first
     // stage found that a camera path's bounce finds the light, 8 at 1 where it did not;
-    // the gathers smoothed within 5 global radii (`GATHER_SMOOTHING`).
+    // the gathers smoothed within 5 global radii (`GATHER_SMOOTHING`); 2 shadow rays a
+    // sample to each area light (`SHADOW_RAYS`).
     let gathering = |gather_rays, spp| {
         Integrator::Ppm(Progressive {
             pass: PhotonMapping {
                 gather_rays,
                 spp,
+                shadow_rays: 2,
                 ..PhotonMapping::PPM_PASS
             },
             gather_smoothing: 5.0,
