@@ -41,8 +41,9 @@ use crate::spec::{EffectSwitches, PhotonStore, RenderSpec};
 pub struct VertexPlan {
     /// Direct light by shadow rays (full BSDF).
     pub shadow_rays: bool,
-    /// Shadow rays to each area light (a point light takes one): more than one only where
-    /// the camera's paths first reach a non-specular surface (`PhotonMapping::shadow_rays`).
+    /// Shadow rays to each area light (a point light takes one; 0 counts as 1): more than
+    /// one only where the camera's paths first reach a non-specular surface
+    /// (`PhotonMapping::shadow_rays`).
     pub area_shadow_rays: u32,
     /// Caustics from the caustic map.
     pub caustic_map: bool,
@@ -162,7 +163,7 @@ impl Plan {
                 };
                 let gather = p.gather_rays > 0;
                 let primary = VertexPlan {
-                    area_shadow_rays: p.shadow_rays.max(1),
+                    area_shadow_rays: p.shadow_rays,
                     ..if gather {
                         VertexPlan {
                             global: read(&[]),

@@ -212,7 +212,7 @@ const GATHER_SMOOTHING: f32 = 5.0;
 /// the race 2 reached Mitsuba's error sooner than both runs of 4 in 11 of knot's and
 /// cornell's 16 cells, later in 3 (relmse at 16 and 64 s, met either way)
 /// (docs/performance-history.md, "more shadow rays where the camera looks").
-pub(super) const SHADOW_RAYS: u32 = 2;
+const SHADOW_RAYS: u32 = 2;
 
 /// The longest time limit (given alone) under which `auto`'s gathering traces half of
 /// `ppm`'s photons a pass ([`gathering`]).

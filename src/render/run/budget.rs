@@ -124,7 +124,10 @@ fn work(spec: &RenderSpec, pixels: u64) -> f64 {
     // A camera ray, its gather rays and its shadow rays beyond the first (each area light's
     // extra rays: counted as one light's).
     let camera = |spp: u32, more_rays: u32| pixels as f64 * spp as f64 * (1.0 + more_rays as f64);
-    let mapping_rays = |p: &PhotonMapping| p.gather_rays.saturating_add(p.shadow_rays.max(1) - 1);
+    let mapping_rays = |p: &PhotonMapping| {
+        p.gather_rays
+            .saturating_add(p.shadow_rays.saturating_sub(1))
+    };
     match &spec.integrator {
         Integrator::Raytrace(r) => camera(r.spp, 0),
         Integrator::Photon(p) => {
