@@ -195,7 +195,11 @@ def main():
     ap.add_argument("--budgets", type=float, nargs="+", default=[1, 4, 16, 64])
     ap.add_argument("--integrators", nargs="+",
                     default=["auto", "photon", "ppm", "ppm_gather", "pt", "lt", "bdpt", "vcm"])
-    ap.add_argument("--scenes", nargs="+", default=list(SCENES))
+    ap.add_argument("--scenes", nargs="*", default=list(SCENES),
+                    help="built-in scenes to race (none: only --scene-files)")
+    ap.add_argument("--scene-files", nargs="+", default=[],
+                    help="other scenes to race (JSON; named by their file's stem, their goal "
+                         "by whether they hold a mirror or glass; reference REFS/STEM.ref.exr)")
     ap.add_argument("--report-only", action="store_true",
                     help="print the tables and plots of OUT/points.json, render nothing")
     args = ap.parse_args()
@@ -221,10 +225,15 @@ def main():
             for metric in ("relmse", "block_err"):
                 plot(name, r, metric, os.path.join(args.out, f"{name}.{metric}.svg"))
         return 0
+    scenes = {name: (os.path.join(ROOT, SCENES[name][0]), SCENES[name][1])
+              for name in args.scenes}
+    for path in args.scene_files:
+        name = os.path.splitext(os.path.basename(path))[0]
+        materials = json.load(open(path))["materials"].values()
+        specular = any(m["type"] in ("mirror", "dielectric") for m in materials)
+        scenes[name] = (os.path.abspath(path), specular)
     results = {}
-    for name in args.scenes:
-        scene, caustics = SCENES[name]
-        scene = os.path.join(ROOT, scene)
+    for name, (scene, caustics) in scenes.items():
         ref = os.path.join(args.refs, f"{name}.ref.exr")
         print(f"{name}:", flush=True)
         mi = mitsuba_ladder(name, scene, ref, args.budgets, args.out)
