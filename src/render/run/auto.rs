@@ -266,9 +266,9 @@ fn bdpt_or_gathering(
         .gathering
         .map_or(String::new(), |g| format!(", gathering {g:.3e}"));
     let variances = format!(
-        "a pilot's variance per pass (its last stage over {} passes): pt {:.3e}, bdpt \
-         {:.3e}{gathered}",
-        pilot.passes, pilot.pt, pilot.bdpt
+        "a pilot's variance per pass: pt {:.3e} (over {} passes), bdpt {:.3e}{gathered} (over \
+         {} passes)",
+        pilot.pt, pilot.passes[0], pilot.bdpt, pilot.passes[1]
     );
     Ok(if pilot.prefers_bdpt() {
         let why = format!(

@@ -1,0 +1,240 @@
+//! `auto`'s pilot between final gathering and connections on a room without mirror or
+//! glass. In an open box lit from its ceiling `ppm` with final gathering reached Mitsuba's
+//! error 1.5-5x sooner than `pt`, and `pt` 15-20% sooner than `bdpt` (docs/performance.md,
+//! "2026-12-04, late night"; docs/performance-history.md, "auto's pilot"); where the camera
+//! sees mostly light that came off a small bright patch (a skewed quad light facing a wall
+//! at a few centimetres, which shadow rays sample by area) a gather ray finds the patch as
+//! rarely as a camera path's bounce does, and `bdpt`'s connections may win. The scene's
+//! facts do not tell the two apart (the share of seen surfaces lit directly was tried: 0.70
+//! in cornell, 0.74 and 0.89 in two rooms where `bdpt` won against `pt`), the variance of
+//! a small render does.
+//!
+//! The pilot renders the image at about 48x48 pixels, twice per integrator under two seeds
+//! of its own, [`FIRST_LOOK`] or [`PILOT_PASSES`] passes each (`renders.rs`), and compares
+//! per-pass variances (the squared difference between a pair, relative as `relmse` weighs
+//! it), in two stages:
+//!
+//! 1. `pt` against `bdpt`: where `pt`'s variance is within [`BOUNCE_FINDS_THE_LIGHT`]
+//!    times `bdpt`'s, a camera path's bounce finds the light,
+//!    and so do gather rays: gathering, without more pilot (cornell, knot);
+//! 2. otherwise `auto`'s gathering itself (its photons scaled to the pilot's pixels, so
+//!    that a density estimate spans as many pixels as in the render; about as long again)
+//!    against `bdpt`: `bdpt` when gathering's variance times [`GATHERING_PASS_COST`] is
+//!    the larger. A point light's hot spot (cornell_spheres) makes `pt` poor but not
+//!    gathering, whose shadow rays reach the light from where its gather rays land; a
+//!    light that shadow rays sample poorly from there (a parallelogram a few centimetres
+//!    from the wall it faces) makes both poor.
+//!
+//! Stage 1 looks first after [`FIRST_LOOK`] passes and decides there where its ratio lies
+//! clearly on one side of its threshold ([`CLEAR_MARGIN`]); otherwise its renders continue
+//! from their states to [`PILOT_PASSES`] (the same bytes as one render of that many) and it
+//! decides as it did before the first look was added. Stage 2 runs as many passes as stage
+//! 1 did and, after 4, looks first the same way. Clear after 4: an open box under a
+//! ceiling light, a washed wall, a room behind a partition; the pilot took 30-55% less time
+//! there, with the same choices. Where a ratio is near its threshold (cornell_spheres' stage
+//! 2, some seeds of cornell and knot) the pilot runs as long as before. The early decisions
+//! are empirical: the margins hold the ratios measured (docs/performance-history.md, "the
+//! pilot's first look"), not a bound.
+//!
+//! Before 2026-12-05 the first stage decided alone, and chose `bdpt` on cornell_spheres,
+//! where gathering is 1.3-3x sooner. A function of the scene and the spec alone (the
+//! pilot's bytes do not depend on the thread count or the clock), so the choice is the
+//! same on every run.
+
+mod renders;
+
+use super::auto::GatherShape;
+use crate::render::control::Control;
+use crate::render::outcome::RenderError;
+use crate::render::scene::Scene;
+use crate::spec::{Integrator, Passes, RenderSpec};
+use renders::{Pair, Renders, pass_variance};
+
+/// Below how many times `bdpt`'s per-pass variance `pt`'s lies where a camera path's bounce
+/// finds the light, so that gathering needs no pilot of its own: a `bdpt` pass's cost in
+/// `pt` passes (1.5-1.8), times the least of how much sooner gathering reached Mitsuba's
+/// error than `pt` (1.7). pt/bdpt read 1.5-2.0 on cornell and knot, 4.4-6.4 where a bright
+/// patch lights the room, with 16 passes and the old weight (docs/performance-history.md,
+/// "auto's pilot"); 1.7-2.4 and 6.2-37 with 8 passes weighed by `bdpt`'s mean.
+const BOUNCE_FINDS_THE_LIGHT: f64 = 1.8 * 1.7;
+
+/// About how many times a `bdpt` pass's time a pass of `auto`'s gathering takes (one
+/// sample and its gather rays a pixel, and the pass's photons): 1.64 on cornell_spheres,
+/// 2.15 on cornell, 2.08 on tests/bidir.rs's `WALL_WASH` at 256x256, since its density
+/// estimates search a hashed grid (docs/performance-history.md, "ppm's range search in a
+/// hashed grid").
+const GATHERING_PASS_COST: f64 = 2.0;
+
+/// Pixels of a pilot image (its aspect the camera's).
+const PILOT_PIXELS: f64 = 2304.0;
+
+/// The most passes a pilot render runs. With the pixels weighed by `bdpt`'s mean
+/// ([`pass_variance`]) 8 tell the rooms apart as 16 did, seeds 1-5: the first stage's pt/bdpt
+/// 1.7-2.4 on cornell and knot against 6.2-6.6 on cornell_spheres and 23-37 where a light
+/// washes a wall; the second stage's bdpt/gathering over the pass cost 1.9-2.1 on
+/// cornell_spheres, 0.5-0.6 and under 0.03 on a washed wall lit by a rectangle and by a
+/// parallelogram (docs/performance-history.md, "the pilot weighed by bdpt's mean").
+const PILOT_PASSES: u32 = 8;
+
+/// Passes after which the pilot first looks: where a stage's ratio lies clearly on one side
+/// of its threshold it decides there, else its renders continue (from their states: the
+/// same bytes) to [`PILOT_PASSES`] and it decides as before.
+const FIRST_LOOK: u32 = 4;
+
+/// How far a ratio must lie from its threshold (times or over) for the first look to
+/// decide. Seeds 1-5 at 256x256 (docs/performance-history.md, "the pilot's first look"):
+/// stage 1's ratio after 4 passes lay within 1.25 times of its value after 8 where it was
+/// near the threshold (cornell, knot, a room lit by two sphere lights), 1.6 times where it
+/// was far (a washed wall, 21-48 against 23-37); stage 2's read 0.66-0.99 of it. Every
+/// first look beyond 1.4 chose as the eighth pass did.
+const CLEAR_MARGIN: f64 = 1.4;
+
+/// Below what stage 2's first look (`bdpt`'s variance over gathering's times its pass cost)
+/// takes `bdpt`: its ratio after 4 passes read 0.66-0.99 of its value after 8, so a read
+/// under 1 / [`CLEAR_MARGIN`] could still be gathering's after 8; under 0.5 it could not at
+/// that drift (the washed wall read 0.23-0.29).
+const STAGE_TWO_BDPT_BELOW: f64 = 0.5;
+
+/// How the second stage's gathering spends its rays, and so the render's where it ran:
+/// where `pt`'s bounce finds the light poorly, more rays a camera sample.
+const SECOND_STAGE_SHAPE: GatherShape = GatherShape::OnOneSample;
+
+/// The fewest photons a pilot pass of gathering traces, however small the image.
+const MIN_PILOT_PHOTONS: u64 = 1_000;
+
+/// Whether `ratio` is clearly below (Some(false): under `low`) or above (Some(true): over
+/// `high`) its threshold between them; None where it is close.
+fn verdict(ratio: f64, low: f64, high: f64) -> Option<bool> {
+    if ratio < low {
+        Some(false)
+    } else if ratio > high {
+        Some(true)
+    } else {
+        None
+    }
+}
+
+/// What the pilot found: each integrator's per-pass variance (relative, summed over the
+/// pilot image's pixels and channels); gathering's only where `pt`'s bounce found the
+/// light poorly.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Pilot {
+    pub pt: f64,
+    pub bdpt: f64,
+    pub gathering: Option<f64>,
+    /// The passes `pt`'s variance is over, and `bdpt`'s (and gathering's): [`FIRST_LOOK`]
+    /// or [`PILOT_PASSES`] each.
+    pub passes: [u32; 2],
+}
+
+impl Pilot {
+    /// Whether `bdpt` reaches a given error sooner than `ppm` with final gathering, by the
+    /// pilot: variance times the cost of a pass.
+    pub fn prefers_bdpt(&self) -> bool {
+        self.gathering
+            .is_some_and(|g| g * GATHERING_PASS_COST > self.bdpt)
+    }
+
+    /// How gathering should spend its rays: over more camera samples where a camera path's
+    /// bounce found the light (the first stage decided alone), else as the second stage
+    /// rendered it ([`SECOND_STAGE_SHAPE`]), the shape its variance vouches for.
+    pub fn gather_shape(&self) -> GatherShape {
+        match self.gathering {
+            None => GatherShape::OverSamples,
+            Some(_) => SECOND_STAGE_SHAPE,
+        }
+    }
+}
+
+/// The pilot of `spec` (its seed, depth and effect switches) on `scene`, cancelled with
+/// `control`: `pt` against `bdpt`, then, where `pt` did poorly, gathering against `bdpt`.
+pub(super) fn run_pilot(
+    scene: &Scene,
+    spec: &RenderSpec,
+    control: &Control,
+) -> Result<Pilot, RenderError> {
+    pilot_looking_first_at(scene, spec, control, FIRST_LOOK)
+}
+
+/// [`run_pilot`] with its first look after `first_look` passes ([`PILOT_PASSES`]: none).
+fn pilot_looking_first_at(
+    scene: &Scene,
+    spec: &RenderSpec,
+    control: &Control,
+    first_look: u32,
+) -> Result<Pilot, RenderError> {
+    let renders = Renders::new(scene, spec, control);
+    let (bdpt_pair, passes, pt, bdpt) = stage_one(&renders, first_look)?;
+    if pt <= BOUNCE_FINDS_THE_LIGHT * bdpt {
+        return Ok(Pilot {
+            pt,
+            bdpt,
+            gathering: None,
+            passes: [passes; 2],
+        });
+    }
+    let (gathering, bdpt, compared) = stage_two(&renders, bdpt_pair, passes)?;
+    Ok(Pilot {
+        pt,
+        bdpt,
+        gathering: Some(gathering),
+        passes: [passes, compared],
+    })
+}
+
+/// Stage 1, `pt` against `bdpt`: `bdpt`'s pair, the passes it ran, and the two variances.
+fn stage_one(renders: &Renders, first_look: u32) -> Result<(Pair, u32, f64, f64), RenderError> {
+    let both = |upto: u32, resume: Option<(Pair, Pair)>| {
+        let (rb, rp) = resume.map_or((None, None), |(b, p)| (Some(b), Some(p)));
+        let (bdpt, pt) = rayon::join(
+            || renders.pair(&Integrator::Bdpt, upto, rb),
+            || renders.pair(&Integrator::Pt, upto, rp),
+        );
+        Ok::<_, RenderError>((bdpt?, pt?))
+    };
+    let variances =
+        |(bdpt, pt): &(Pair, Pair), n| (pass_variance(pt, bdpt, n), pass_variance(bdpt, bdpt, n));
+    let first = both(first_look, None)?;
+    let (pt, bdpt) = variances(&first, first_look);
+    if first_look >= PILOT_PASSES
+        || verdict(
+            pt / bdpt,
+            BOUNCE_FINDS_THE_LIGHT / CLEAR_MARGIN,
+            BOUNCE_FINDS_THE_LIGHT * CLEAR_MARGIN,
+        )
+        .is_some()
+    {
+        return Ok((first.0, first_look, pt, bdpt));
+    }
+    let looks = both(PILOT_PASSES, Some(first))?;
+    let (pt, bdpt) = variances(&looks, PILOT_PASSES);
+    Ok((looks.0, PILOT_PASSES, pt, bdpt))
+}
+
+/// Stage 2, gathering against `bdpt` (whose pair ran `passes`): their variances, both over
+/// the same passes, and those passes.
+fn stage_two(renders: &Renders, bdpt: Pair, passes: u32) -> Result<(f64, f64, u32), RenderError> {
+    let gathering = |p: Passes| renders.gathering(p);
+    let variances = |g: &Pair, b: &Pair, n| (pass_variance(g, b, n), pass_variance(b, b, n));
+    let first = renders.pair(&gathering, passes, None)?;
+    let (g, b) = variances(&first, &bdpt, passes);
+    if passes >= PILOT_PASSES
+        || verdict(
+            b / (g * GATHERING_PASS_COST),
+            STAGE_TWO_BDPT_BELOW,
+            CLEAR_MARGIN,
+        )
+        .is_some()
+    {
+        return Ok((g, b, passes));
+    }
+    let (b, g) = rayon::join(
+        || renders.pair(&Integrator::Bdpt, PILOT_PASSES, Some(bdpt)),
+        || renders.pair(&gathering, PILOT_PASSES, Some(first)),
+    );
+    let (g, b) = variances(&g?, &b?, PILOT_PASSES);
+    Ok((g, b, PILOT_PASSES))
+}
+
+#[cfg(test)]
+mod tests;
