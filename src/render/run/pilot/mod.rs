@@ -48,7 +48,7 @@ use crate::render::control::Control;
 use crate::render::outcome::RenderError;
 use crate::render::scene::Scene;
 use crate::spec::{Integrator, Passes, RenderSpec};
-use renders::{Pair, Renders, pass_variance};
+use renders::{Pair, Renders, variances};
 
 /// Below how many times `bdpt`'s per-pass variance `pt`'s lies where a camera path's bounce
 /// finds the light, so that gathering needs no pilot of its own: a `bdpt` pass's cost in
@@ -69,8 +69,8 @@ const GATHERING_PASS_COST: f64 = 2.0;
 const PILOT_PIXELS: f64 = 2304.0;
 
 /// The most passes a pilot render runs. With the pixels weighed by `bdpt`'s mean
-/// ([`pass_variance`]) 8 tell the rooms apart as 16 did, seeds 1-5: the first stage's pt/bdpt
-/// 1.7-2.4 on cornell and knot against 6.2-6.6 on cornell_spheres and 23-37 where a light
+/// (`renders.rs`, `pass_variance`) 8 tell the rooms apart as 16 did, seeds 1-5: the first
+/// stage's pt/bdpt 1.7-2.4 on cornell and knot against 6.2-6.6 on cornell_spheres and 23-37 where a light
 /// washes a wall; the second stage's bdpt/gathering over the pass cost 1.9-2.1 on
 /// cornell_spheres, 0.5-0.6 and under 0.03 on a washed wall lit by a rectangle and by a
 /// parallelogram (docs/performance-history.md, "the pilot weighed by bdpt's mean").
@@ -192,8 +192,7 @@ fn stage_one(renders: &Renders, first_look: u32) -> Result<(Pair, u32, f64, f64)
         );
         Ok::<_, RenderError>((bdpt?, pt?))
     };
-    let variances =
-        |(bdpt, pt): &(Pair, Pair), n| (pass_variance(pt, bdpt, n), pass_variance(bdpt, bdpt, n));
+    let variances = |(bdpt, pt): &(Pair, Pair), n| variances(pt, bdpt, n);
     let first = both(first_look, None)?;
     let (pt, bdpt) = variances(&first, first_look);
     if first_look >= PILOT_PASSES
@@ -215,7 +214,6 @@ fn stage_one(renders: &Renders, first_look: u32) -> Result<(Pair, u32, f64, f64)
 /// the same passes, and those passes.
 fn stage_two(renders: &Renders, bdpt: Pair, passes: u32) -> Result<(f64, f64, u32), RenderError> {
     let gathering = |p: Passes| renders.gathering(p);
-    let variances = |g: &Pair, b: &Pair, n| (pass_variance(g, b, n), pass_variance(b, b, n));
     let first = renders.pair(&gathering, passes, None)?;
     let (g, b) = variances(&first, &bdpt, passes);
     if passes >= PILOT_PASSES

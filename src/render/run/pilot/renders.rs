@@ -137,6 +137,15 @@ impl<'a> Renders<'a> {
 /// An integrator made for a pass count.
 pub(super) type IntegratorFor<'m> = dyn Fn(Passes) -> Integrator + Sync + 'm;
 
+/// The per-pass variances of `measured`'s pair and of `bdpt`'s, both weighed by `bdpt`'s
+/// mean ([`pass_variance`]), each pair the mean of `passes` passes.
+pub(super) fn variances(measured: &Pair, bdpt: &Pair, passes: u32) -> (f64, f64) {
+    (
+        pass_variance(measured, bdpt, passes),
+        pass_variance(bdpt, bdpt, passes),
+    )
+}
+
 /// An integrator's per-pass variance from a pair of its pilot images (each the mean of
 /// `passes` passes): a pair's squared difference is twice the variance of a mean,
 /// weighed by 1 / (m^2 + 0.01) with m the mean of `bdpt`'s pair `weigh_by` (as `relmse`
@@ -145,7 +154,7 @@ pub(super) type IntegratorFor<'m> = dyn Fn(Passes) -> Integrator + Sync + 'm;
 /// held the measured integrator's images would rise with its own fireflies and discount
 /// them: with it, a washed wall's pt/bdpt read 4.4-5.9 after 16 passes and 1.9-2.5 after 8,
 /// below [`BOUNCE_FINDS_THE_LIGHT`].
-pub(super) fn pass_variance([a, b]: &Pair, weigh_by: &Pair, passes: u32) -> f64 {
+fn pass_variance([a, b]: &Pair, weigh_by: &Pair, passes: u32) -> f64 {
     let [a, b, x, y] = [a, b, &weigh_by[0], &weigh_by[1]].map(|l| &l.image);
     let mut sum = 0.0;
     for i in 0..a.pixels.len() {
