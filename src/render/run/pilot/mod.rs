@@ -70,7 +70,8 @@ const PILOT_PIXELS: f64 = 2304.0;
 
 /// The most passes a pilot render runs. With the pixels weighed by `bdpt`'s mean
 /// (`renders.rs`, `pass_variance`) 8 tell the rooms apart as 16 did, seeds 1-5: the first
-/// stage's pt/bdpt 1.7-2.4 on cornell and knot against 6.2-6.6 on cornell_spheres and 23-37 where a light
+/// stage's pt/bdpt 1.7-2.4 on cornell and knot against 6.2-6.6 on cornell_spheres and
+/// 23-37 where a light
 /// washes a wall; the second stage's bdpt/gathering over the pass cost 1.9-2.1 on
 /// cornell_spheres, 0.5-0.6 and under 0.03 on a washed wall lit by a rectangle and by a
 /// parallelogram (docs/performance-history.md, "the pilot weighed by bdpt's mean").
