@@ -218,6 +218,12 @@ const SHADOW_RAYS: u32 = 2;
 /// `ppm`'s photons a pass ([`gathering`]).
 const SHORT_LIMIT: f64 = 4.0;
 
+/// Whether `passes` stop at a short time limit alone ([`SHORT_LIMIT`]): a budget where what
+/// comes first (the pilot, the first passes' photons) is a large share.
+pub(super) fn short_limit(passes: &Passes) -> bool {
+    (passes.stop.time_limit_alone()).is_some_and(|t| t <= SHORT_LIMIT)
+}
+
 /// `ppm` with final gathering as `auto` renders a room whose light a camera path's bounce
 /// or a gather ray finds, with `passes`, its gather rays shaped by `shape`.
 ///
@@ -234,8 +240,7 @@ pub(super) fn gathering(passes: &Passes, shape: GatherShape) -> Progressive {
         GatherShape::OnOneSample => (8, 1),
     };
     let full = PhotonMapping::PPM_PASS;
-    let short = (passes.stop.time_limit_alone()).is_some_and(|t| t <= SHORT_LIMIT);
-    let share = if short { 2 } else { 1 };
+    let share = if short_limit(passes) { 2 } else { 1 };
     Progressive {
         pass: PhotonMapping {
             gather_rays,
@@ -261,7 +266,7 @@ fn bdpt_or_gathering(
     passes: &Passes,
     control: &Control,
 ) -> Result<(Integrator, String), RenderError> {
-    let pilot = run_pilot(scene, spec, control)?;
+    let pilot = run_pilot(scene, spec, passes, control)?;
     let gathered = pilot
         .gathering
         .map_or(String::new(), |g| format!(", gathering {g:.3e}"));

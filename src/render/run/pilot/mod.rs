@@ -36,6 +36,13 @@
 //! are empirical: the margins hold the ratios measured (docs/performance-history.md, "the
 //! pilot's first look"), not a bound.
 //!
+//! Under a short time limit alone (`auto.rs`, `SHORT_LIMIT`) every look is the last
+//! ([`Looks::of`]): a stage decides at its first look by the side of its threshold its
+//! ratio lies on. Near a threshold the two integrators reach an error about equally soon,
+//! so four more passes there buy a choice worth little, at a price the short budget pays
+//! in full (on a room lit by two sphere lights both stages continued: a quarter of a 1-s
+//! budget).
+//!
 //! Before 2026-12-05 the first stage decided alone, and chose `bdpt` on cornell_spheres,
 //! where gathering is 1.3-3x sooner. A function of the scene and the spec alone (the
 //! pilot's bytes do not depend on the thread count or the clock), so the choice is the
@@ -43,7 +50,7 @@
 
 mod renders;
 
-use super::auto::GatherShape;
+use super::auto::{GatherShape, short_limit};
 use crate::render::control::Control;
 use crate::render::outcome::RenderError;
 use crate::render::scene::Scene;
@@ -81,6 +88,36 @@ const PILOT_PASSES: u32 = 8;
 /// of its threshold it decides there, else its renders continue (from their states: the
 /// same bytes) to [`PILOT_PASSES`] and it decides as before.
 const FIRST_LOOK: u32 = 4;
+
+/// After how many passes a pilot stage first looks, and how many it may run at most.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Looks {
+    first: u32,
+    last: u32,
+}
+
+impl Looks {
+    /// The pilot's looks for a render stopped by `passes`: [`FIRST_LOOK`], and
+    /// [`PILOT_PASSES`] where that was not clear, except under a short time limit alone,
+    /// where the first look is the last (a stage there decides by the side of its threshold).
+    fn of(passes: &Passes) -> Looks {
+        let last = if short_limit(passes) {
+            FIRST_LOOK
+        } else {
+            PILOT_PASSES
+        };
+        Looks {
+            first: FIRST_LOOK,
+            last,
+        }
+    }
+
+    /// Whether a first look's `ratio` decides the stage: it lies clearly on one side of its
+    /// threshold (under `low` or over `high`), or no later look follows.
+    fn decides(&self, ratio: f64, low: f64, high: f64) -> bool {
+        self.first >= self.last || verdict(ratio, low, high).is_some()
+    }
+}
 
 /// How far a ratio must lie from its threshold (times or over) for the first look to
 /// decide. Seeds 1-5 at 256x256 (docs/performance-history.md, "the pilot's first look"):
@@ -147,25 +184,27 @@ impl Pilot {
     }
 }
 
-/// The pilot of `spec` (its seed, depth and effect switches) on `scene`, cancelled with
-/// `control`: `pt` against `bdpt`, then, where `pt` did poorly, gathering against `bdpt`.
+/// The pilot of `spec` (its seed, depth and effect switches) on `scene` for a render stopped
+/// by `passes`, cancelled with `control`: `pt` against `bdpt`, then, where `pt` did poorly,
+/// gathering against `bdpt`.
 pub(super) fn run_pilot(
     scene: &Scene,
     spec: &RenderSpec,
+    passes: &Passes,
     control: &Control,
 ) -> Result<Pilot, RenderError> {
-    pilot_looking_first_at(scene, spec, control, FIRST_LOOK)
+    pilot_looking(scene, spec, control, Looks::of(passes))
 }
 
-/// [`run_pilot`] with its first look after `first_look` passes ([`PILOT_PASSES`]: none).
-fn pilot_looking_first_at(
+/// [`run_pilot`] with its `looks`.
+fn pilot_looking(
     scene: &Scene,
     spec: &RenderSpec,
     control: &Control,
-    first_look: u32,
+    looks: Looks,
 ) -> Result<Pilot, RenderError> {
     let renders = Renders::new(scene, spec, control);
-    let (bdpt_pair, passes, pt, bdpt) = stage_one(&renders, first_look)?;
+    let (bdpt_pair, passes, pt, bdpt) = stage_one(&renders, looks)?;
     if pt <= BOUNCE_FINDS_THE_LIGHT * bdpt {
         return Ok(Pilot {
             pt,
@@ -174,7 +213,7 @@ fn pilot_looking_first_at(
             passes: [passes; 2],
         });
     }
-    let (gathering, bdpt, compared) = stage_two(&renders, bdpt_pair, passes)?;
+    let (gathering, bdpt, compared) = stage_two(&renders, bdpt_pair, passes, looks.last)?;
     Ok(Pilot {
         pt,
         bdpt,
@@ -184,7 +223,7 @@ fn pilot_looking_first_at(
 }
 
 /// Stage 1, `pt` against `bdpt`: `bdpt`'s pair, the passes it ran, and the two variances.
-fn stage_one(renders: &Renders, first_look: u32) -> Result<(Pair, u32, f64, f64), RenderError> {
+fn stage_one(renders: &Renders, looks: Looks) -> Result<(Pair, u32, f64, f64), RenderError> {
     let both = |upto: u32, resume: Option<(Pair, Pair)>| {
         let (rb, rp) = resume.map_or((None, None), |(b, p)| (Some(b), Some(p)));
         let (bdpt, pt) = rayon::join(
@@ -194,45 +233,48 @@ fn stage_one(renders: &Renders, first_look: u32) -> Result<(Pair, u32, f64, f64)
         Ok::<_, RenderError>((bdpt?, pt?))
     };
     let variances = |(bdpt, pt): &(Pair, Pair), n| variances(pt, bdpt, n);
-    let first = both(first_look, None)?;
-    let (pt, bdpt) = variances(&first, first_look);
-    if first_look >= PILOT_PASSES
-        || verdict(
-            pt / bdpt,
-            BOUNCE_FINDS_THE_LIGHT / CLEAR_MARGIN,
-            BOUNCE_FINDS_THE_LIGHT * CLEAR_MARGIN,
-        )
-        .is_some()
-    {
-        return Ok((first.0, first_look, pt, bdpt));
+    let first = both(looks.first, None)?;
+    let (pt, bdpt) = variances(&first, looks.first);
+    if looks.decides(
+        pt / bdpt,
+        BOUNCE_FINDS_THE_LIGHT / CLEAR_MARGIN,
+        BOUNCE_FINDS_THE_LIGHT * CLEAR_MARGIN,
+    ) {
+        return Ok((first.0, looks.first, pt, bdpt));
     }
-    let looks = both(PILOT_PASSES, Some(first))?;
-    let (pt, bdpt) = variances(&looks, PILOT_PASSES);
-    Ok((looks.0, PILOT_PASSES, pt, bdpt))
+    let last = both(looks.last, Some(first))?;
+    let (pt, bdpt) = variances(&last, looks.last);
+    Ok((last.0, looks.last, pt, bdpt))
 }
 
-/// Stage 2, gathering against `bdpt` (whose pair ran `passes`): their variances, both over
-/// the same passes, and those passes.
-fn stage_two(renders: &Renders, bdpt: Pair, passes: u32) -> Result<(f64, f64, u32), RenderError> {
+/// Stage 2, gathering against `bdpt` (whose pair ran `passes`), to `last` passes at most:
+/// their variances, both over the same passes, and those passes.
+fn stage_two(
+    renders: &Renders,
+    bdpt: Pair,
+    passes: u32,
+    last: u32,
+) -> Result<(f64, f64, u32), RenderError> {
     let gathering = |p: Passes| renders.gathering(p);
     let first = renders.pair(&gathering, passes, None)?;
     let (g, b) = variances(&first, &bdpt, passes);
-    if passes >= PILOT_PASSES
-        || verdict(
-            b / (g * GATHERING_PASS_COST),
-            STAGE_TWO_BDPT_BELOW,
-            CLEAR_MARGIN,
-        )
-        .is_some()
-    {
+    let looks = Looks {
+        first: passes,
+        last,
+    };
+    if looks.decides(
+        b / (g * GATHERING_PASS_COST),
+        STAGE_TWO_BDPT_BELOW,
+        CLEAR_MARGIN,
+    ) {
         return Ok((g, b, passes));
     }
     let (b, g) = rayon::join(
-        || renders.pair(&Integrator::Bdpt, PILOT_PASSES, Some(bdpt)),
-        || renders.pair(&gathering, PILOT_PASSES, Some(first)),
+        || renders.pair(&Integrator::Bdpt, last, Some(bdpt)),
+        || renders.pair(&gathering, last, Some(first)),
     );
-    let (g, b) = variances(&g?, &b?, PILOT_PASSES);
-    Ok((g, b, PILOT_PASSES))
+    let (g, b) = variances(&g?, &b?, last);
+    Ok((g, b, last))
 }
 
 #[cfg(test)]

@@ -1,7 +1,21 @@
 //! The pilot's first look against eight passes, and its continued renders.
 
 use super::*;
-use crate::spec::Progressive;
+use crate::spec::{Progressive, Stop};
+
+/// The pilot's looks with no early decision: eight passes each stage.
+const EIGHT: Looks = Looks {
+    first: PILOT_PASSES,
+    last: PILOT_PASSES,
+};
+
+/// Passes stopped after `n`.
+fn after(n: u32) -> Passes {
+    Passes {
+        spp: 1,
+        stop: Stop::after(n),
+    }
+}
 
 /// A white box 2 wide lit by `light` (JSON).
 fn box_lit_by(light: &str) -> Scene {
@@ -48,14 +62,42 @@ fn the_first_look_chooses_as_eight_passes_do() {
     for (light, bdpt) in rooms {
         let scene = box_lit_by(light);
         let control = Control::none();
-        let first = run_pilot(&scene, &spec, &control).unwrap();
-        let eight = pilot_looking_first_at(&scene, &spec, &control, PILOT_PASSES).unwrap();
+        let first = run_pilot(&scene, &spec, &after(64), &control).unwrap();
+        let eight = pilot_looking(&scene, &spec, &control, EIGHT).unwrap();
         assert_eq!(eight.passes, [PILOT_PASSES; 2]);
         assert_eq!(first.passes, [FIRST_LOOK; 2], "{light}: {first:?}");
         assert_eq!(first.prefers_bdpt(), bdpt, "{light}: {first:?}");
         assert_eq!(eight.prefers_bdpt(), bdpt, "{light}: {eight:?}");
         assert_eq!(first.gather_shape(), eight.gather_shape(), "{light}");
     }
+}
+
+/// Under a short time limit alone the pilot decides at its first look where otherwise it
+/// would continue: a room lit by two sphere lights (docs/validation/rooms), whose stage 1
+/// ratio after 4 passes lies near its threshold, continues to 8 passes under a pass count and
+/// a long limit, and stops at 4 under a 1-s limit.
+#[test]
+fn a_short_time_limit_decides_at_the_first_look() {
+    let scene = Scene::load(std::path::Path::new(
+        "docs/validation/rooms/sphere_room.json",
+    ))
+    .expect("the room loads");
+    let spec = RenderSpec::ppm(Progressive::DEFAULT);
+    let control = Control::none();
+    let limit = |t: f64| Passes {
+        spp: 1,
+        stop: Stop {
+            iterations: None,
+            time_limit: Some(t),
+            target_error: None,
+        },
+    };
+    for passes in [after(64), limit(64.0)] {
+        let pilot = run_pilot(&scene, &spec, &passes, &control).unwrap();
+        assert_eq!(pilot.passes[0], PILOT_PASSES, "{passes:?}: {pilot:?}");
+    }
+    let short = run_pilot(&scene, &spec, &limit(1.0), &control).unwrap();
+    assert_eq!(short.passes, [FIRST_LOOK; 2], "{short:?}");
 }
 
 const POINT_LIGHT: &str = r#"{"type": "point", "position": [0, 1.75, 0], "power": [30, 30, 30]}"#;
