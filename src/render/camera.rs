@@ -67,6 +67,15 @@ impl Camera {
     /// The film position (pixels, as [`Camera::ray`] takes it) that world point `p`
     /// projects to: None behind the camera or off the film.
     pub fn raster(&self, p: Vec3A) -> Option<glam::Vec2> {
+        let q = self.film_position(p)?;
+        let on_film =
+            q.x >= 0.0 && q.y >= 0.0 && q.x < self.width as f32 && q.y < self.height as f32;
+        on_film.then_some(q)
+    }
+
+    /// Where on the film's plane world point `p` projects to, on the film or off it: None
+    /// for a point not in front of the camera.
+    pub fn film_position(&self, p: Vec3A) -> Option<glam::Vec2> {
         let d = p - self.position;
         let z = d.dot(self.forward);
         if !(z > 0.0) {
@@ -77,8 +86,7 @@ impl Camera {
         let sy = d.dot(self.up) / z;
         let x = (sx / (self.tan_half_fov * aspect) + 1.0) * 0.5 * self.width as f32;
         let y = (1.0 - sy / self.tan_half_fov) * 0.5 * self.height as f32;
-        let on_film = x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32;
-        on_film.then_some(glam::Vec2::new(x, y))
+        Some(glam::Vec2::new(x, y))
     }
 
     /// The ray through film position (x, y) in pixels, (0, 0) the top-left corner of the image.

@@ -58,7 +58,15 @@ pub(crate) trait CameraPaths: Sync {
     /// What a pixel keeps of its samples besides their mean radiance (`()` for most).
     type Extra: Default + Send;
 
-    fn radiance(&self, ray: &Ray, pixel: u64, s: &mut Sampler, scratch: &mut Self::Scratch) -> Rgb;
+    /// The radiance camera `ray` brings to the pixel at index `pixel`, column and row `xy`.
+    fn radiance(
+        &self,
+        ray: &Ray,
+        pixel: u64,
+        xy: [u32; 2],
+        s: &mut Sampler,
+        scratch: &mut Self::Scratch,
+    ) -> Rgb;
 
     /// Sample `j`'s random numbers at `pixel`, which is at column and row `xy`.
     fn sampler(&self, pixel: u64, xy: [u32; 2], j: u32) -> Sampler;
@@ -97,8 +105,8 @@ impl CameraPaths for Shader<'_> {
     }
 
     #[inline]
-    fn radiance(&self, ray: &Ray, _: u64, s: &mut Sampler, scratch: &mut Scratch) -> Rgb {
-        self.camera_ray(ray, s, scratch)
+    fn radiance(&self, ray: &Ray, _: u64, xy: [u32; 2], s: &mut Sampler, sc: &mut Scratch) -> Rgb {
+        self.camera_sample(ray, xy, s, sc)
     }
 
     fn keeps_extra(&self) -> bool {
@@ -214,7 +222,8 @@ pub(crate) fn render_film_rows<P: CameraPaths>(
                         let jitter = s.next_2d();
                         let y_image = (y_start + y) as f32;
                         let ray = camera.ray(x as f32 + jitter.x, y_image + jitter.y);
-                        let l = paths.radiance(&ray, pixel, &mut s, scratch);
+                        let xy = [x, y_start + y];
+                        let l = paths.radiance(&ray, pixel, xy, &mut s, scratch);
                         control.check()?;
                         px.add(l);
                         if keep {

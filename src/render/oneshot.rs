@@ -8,7 +8,7 @@ use std::time::Instant;
 use crate::render::control::{Cancelled, Control};
 use crate::render::effects::{Analysis, analyse};
 use crate::render::film::render_film_rows;
-use crate::render::integrator::{Samples, Shader};
+use crate::render::integrator::{Samples, SeenLights, Shader};
 use crate::render::outcome::RenderOutput;
 use crate::render::photon::{
     CausticLookup, Density, IrradianceCache, PhotonMaps, build_photon_maps,
@@ -90,6 +90,7 @@ pub(crate) fn render_with_maps(
             first: 0,
         },
         record_gathers: false,
+        seen: SeenLights::of(scene, &camera),
     };
     let t_render = Instant::now();
     let film = render_film_rows(&shader, &camera, rows, spec.spp(), control)?;

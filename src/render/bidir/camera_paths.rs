@@ -48,7 +48,7 @@ impl CameraPaths for CameraPass<'_> {
         self.it.sampler(Stream::Camera, pixel)
     }
 
-    fn radiance(&self, ray: &Ray, pixel: u64, s: &mut Sampler, _: &mut ()) -> Rgb {
+    fn radiance(&self, ray: &Ray, pixel: u64, _: [u32; 2], s: &mut Sampler, _: &mut ()) -> Rgb {
         let it = self.it;
         let camera = &it.camera;
         let cos = camera.forward().dot(ray.d);

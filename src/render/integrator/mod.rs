@@ -27,9 +27,11 @@
 //! `NEAR_GATHER_RADII`).
 
 mod direct;
+mod seen;
 mod shade;
 mod smooth;
 
+pub use seen::SeenLights;
 pub use shade::{Samples, Scratch, Shader};
 pub use smooth::{GatherPixel, smooth_gathers};
 

@@ -36,6 +36,9 @@ pub struct Shader<'a> {
     /// Leave each camera sample's final gather at the point the camera sees in the scratch
     /// ([`GatherSample`]), for the film to keep (ppm's smoothed gathers, `smooth.rs`).
     pub record_gathers: bool,
+    /// Where the camera may see a light directly: there the light surfaces seen first are
+    /// read by rays of their own (`seen.rs`).
+    pub seen: super::SeenLights,
 }
 
 /// Which points of each pixel's Sobol sequence a camera pass draws: sample j is point
@@ -82,7 +85,7 @@ pub struct Scratch {
 /// Whether a ray counts the light surfaces it reaches, so that no light path is counted
 /// twice (the table in `integrator/mod.rs`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Emission {
+pub(super) enum Emission {
     /// Count them: camera paths, and glossy rays where no shadow rays sample the lights.
     Count,
     /// Count them only after a mirror or glass: shadow rays from the glossy surface sampled
@@ -125,9 +128,20 @@ impl<'p> Segment<'p> {
 impl Shader<'_> {
     /// Radiance arriving at the camera along `ray`.
     pub fn camera_ray(&self, ray: &Ray, s: &mut Sampler, scratch: &mut Scratch) -> Rgb {
+        self.camera_segment(ray, Emission::Count, s, scratch)
+    }
+
+    /// Radiance along camera ray `ray`, counting the light surfaces it reaches as `emission`.
+    pub(super) fn camera_segment(
+        &self,
+        ray: &Ray,
+        emission: Emission,
+        s: &mut Sampler,
+        scratch: &mut Scratch,
+    ) -> Rgb {
         let seg = Segment {
             depth: 0,
-            emission: Emission::Count,
+            emission,
             vertex: &self.plan.primary,
             split: true,
             near_bounces: 0,

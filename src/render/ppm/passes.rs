@@ -9,7 +9,7 @@ use crate::render::camera::Camera;
 use crate::render::control::Control;
 use crate::render::effects::Analysis;
 use crate::render::film::render_film;
-use crate::render::integrator::{Samples, Shader, smooth_gathers};
+use crate::render::integrator::{Samples, SeenLights, Shader, smooth_gathers};
 use crate::render::outcome::RenderError;
 use crate::render::photon::{Density, PhotonMap, PhotonMaps, RadiusLookup, build_photon_maps};
 use crate::render::progressive::{PassAt, PassOutput, PassResult, Progression};
@@ -121,6 +121,7 @@ impl Progression for PpmPasses<'_> {
                 first: (pass as u64 - 1) * spp as u64,
             },
             record_gathers: smoothing.is_some(),
+            seen: SeenLights::of(self.scene, &self.camera),
         };
         let t_render = Instant::now();
         let mut film = render_film(&shader, &self.camera, spp, control)?;

@@ -38,6 +38,9 @@ pub enum Branch {
     Gather,
     /// The shadow rays to an area light beyond a sample's first (the pixel's own).
     Shadow,
+    /// The rays over a pixel that read the light surfaces seen first (`integrator/seen.rs`;
+    /// the pixel's own).
+    SeenLight,
 }
 
 impl Branch {
@@ -46,6 +49,7 @@ impl Branch {
         match self {
             Branch::Gather => BRANCH,
             Branch::Shadow => BRANCH ^ 0x0000_0000_0000_5348,
+            Branch::SeenLight => BRANCH ^ 0x0000_0000_0053_4c00,
         }
     }
 }
