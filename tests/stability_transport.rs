@@ -241,7 +241,8 @@ fn k_larger_than_the_photons_stored() {
 }
 
 /// Photons emitted but none stored (a quad light facing up, away from everything): empty
-/// maps, a black floor, the light itself as its radiance.
+/// maps, a black floor, the light itself as its radiance (pixels its edge crosses as their
+/// share of it, read over the pixel by `integrator/seen.rs`'s rays: never more).
 #[test]
 fn no_photon_stored() {
     let s = scene(
@@ -271,6 +272,7 @@ fn no_photon_stored() {
         .iter()
         .map(|p| p[0])
         .partition(|&v| v > 0.0);
-    assert!(lit.iter().all(|&v| v == 5.0), "{lit:?}");
+    assert!(lit.iter().all(|&v| v <= 5.0), "{lit:?}");
+    assert!(lit.iter().any(|&v| v == 5.0), "{lit:?}");
     assert!(!lit.is_empty() && black.len() > lit.len());
 }

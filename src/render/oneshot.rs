@@ -77,6 +77,7 @@ pub(crate) fn render_with_maps(
 
     let (width, height) = spec.resolution((scene.camera.width, scene.camera.height));
     let camera = scene.camera.clone().with_resolution(width, height);
+    let seen = SeenLights::of(scene, &camera);
     let shader = Shader {
         scene,
         plan,
@@ -90,7 +91,7 @@ pub(crate) fn render_with_maps(
             first: 0,
         },
         record_gathers: false,
-        seen: SeenLights::of(scene, &camera),
+        seen: &seen,
     };
     let t_render = Instant::now();
     let film = render_film_rows(&shader, &camera, rows, spec.spp(), control)?;

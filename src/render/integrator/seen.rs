@@ -11,7 +11,7 @@
 //! integrand: Veach 1997, section 2.5): the camera samples still carry everything else, and
 //! [`SEEN_LIGHT_RAYS`] more rays a sample, spread over the pixel by their own stratified
 //! sequence (a [`Branch::SeenLight`] of the sample's), carry the first. A ray that is only
-//! a first hit costs one intersection; only pixels a visible light's screen box covers
+//! a first hit costs one intersection; only pixels a light's edge may cross
 //! ([`SeenLights`]) pay it. Both estimates are unbiased, so the image's expectation is
 //! unchanged; lights seen through a mirror or glass stay with the camera samples.
 
@@ -24,78 +24,144 @@ use crate::render::math::Rgb;
 use crate::render::qmc::Branch;
 use crate::render::sampling::Sampler;
 use crate::render::scene::Scene;
+use rayon::prelude::*;
 
-/// Rays a camera sample spends on the light surfaces seen first, where a light covers its
-/// pixel: with 2 samples a pixel a pass, 16 a pixel a pass.
+/// Rays a camera sample spends on the light surfaces seen first, where a light's edge may
+/// cross its pixel: with 2 samples a pixel a pass, 16 a pixel a pass.
 pub const SEEN_LIGHT_RAYS: u32 = 8;
 
-/// Where on the film the camera may see an area light directly: each light's bounding box
-/// (a quad's corners, a sphere's bounding cube) projected to the film, the box of the
-/// projections. A light behind the camera's plane in part may cover any pixel.
+/// Which film pixels split their light seen first from the rest: those where a light's edge
+/// may cross the pixel. Each visible area light's bounding box (a quad's corners, a sphere's
+/// bounding cube) is projected to the film (all of it where the light lies partly behind
+/// the camera's plane); over that box, rays through the pixels' corners, edge midpoints and
+/// centres (a grid at half-pixel steps) find which light each sees first, if any. A pixel
+/// whose nine points do not all agree is split. The choice is a function of the scene and
+/// the camera alone, never of a sample, so each pixel's estimate stays unbiased; a pixel
+/// wholly inside a light, or wholly off it, pays no extra rays (a light that fills the view
+/// made `raytrace` 4.5 times slower when every pixel of its box was split).
 #[derive(Clone, Debug)]
 pub struct SeenLights {
     camera: Camera,
-    /// [x0, y0, x1, y1] in film pixels, as [`Camera::ray`] takes them.
-    boxes: Vec<[f32; 4]>,
-    everywhere: bool,
+    /// One bit a film pixel, row-major: whether the pixel is split.
+    split: Vec<u64>,
 }
 
 impl SeenLights {
-    /// The film boxes of `scene`'s area lights seen by `camera`.
+    /// The pixels of `scene`'s film through `camera` that a light's edge may cross.
     pub fn of(scene: &Scene, camera: &Camera) -> SeenLights {
         let mut seen = SeenLights::none(camera);
         for light in &scene.lights {
-            let corners: Vec<_> = match *light {
-                Light::Point { .. } => continue,
-                Light::Quad {
-                    corner,
-                    edge_u,
-                    edge_v,
-                    ..
-                } => vec![
-                    corner,
-                    corner + edge_u,
-                    corner + edge_v,
-                    corner + edge_u + edge_v,
-                ],
-                Light::Sphere { center, radius, .. } => (0..8)
-                    .map(|i| {
-                        let sign = |bit: u32| if i & bit == 0 { -radius } else { radius };
-                        center + glam::Vec3A::new(sign(1), sign(2), sign(4))
-                    })
-                    .collect(),
-            };
-            let projected: Option<Vec<_>> =
-                corners.iter().map(|&p| camera.film_position(p)).collect();
-            let Some(points) = projected else {
-                seen.everywhere = true;
-                continue;
-            };
-            let lo = points.iter().fold(glam::Vec2::MAX, |a, &p| a.min(p));
-            let hi = points.iter().fold(glam::Vec2::MIN, |a, &p| a.max(p));
-            seen.boxes.push([lo.x, lo.y, hi.x, hi.y]);
+            if let Some(film_box) = film_box(light, camera) {
+                seen.mark_edges(scene, film_box);
+            }
         }
         seen
     }
 
     /// No pixel splits: every light seen is left to the camera samples.
     pub fn none(camera: &Camera) -> SeenLights {
+        let pixels = camera.width as usize * camera.height as usize;
         SeenLights {
             camera: camera.clone(),
-            boxes: Vec::new(),
-            everywhere: false,
+            split: vec![0; pixels.div_ceil(64)],
         }
     }
 
-    /// Whether the pixel at column and row `xy` may see a light directly.
+    /// Whether the pixel at column and row `xy` is split.
     #[inline]
     pub fn covers(&self, [x, y]: [u32; 2]) -> bool {
-        let (x, y) = (x as f32, y as f32);
-        self.everywhere
-            || self
-                .boxes
-                .iter()
-                .any(|&[x0, y0, x1, y1]| x + 1.0 > x0 && x < x1 && y + 1.0 > y0 && y < y1)
+        let i = y as usize * self.camera.width as usize + x as usize;
+        self.split
+            .get(i / 64)
+            .is_some_and(|w| w >> (i % 64) & 1 == 1)
+    }
+
+    /// Mark the pixels of `[x0, y0, x1, y1)` whose nine points see different lights first.
+    fn mark_edges(&mut self, scene: &Scene, [x0, y0, x1, y1]: [u32; 4]) {
+        let camera = &self.camera;
+        let (gw, gh) = (2 * (x1 - x0) + 1, 2 * (y1 - y0) + 1);
+        let grid: Vec<Vec<u32>> = (0..gh)
+            .into_par_iter()
+            .map(|j| {
+                let fy = y0 as f32 + j as f32 * 0.5;
+                (0..gw)
+                    .map(|i| first_light(scene, &camera.ray(x0 as f32 + i as f32 * 0.5, fy)).0)
+                    .collect()
+            })
+            .collect();
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let (i, j) = ((2 * (x - x0)) as usize, (2 * (y - y0)) as usize);
+                let seen = grid[j][i];
+                let same = grid[j..j + 3]
+                    .iter()
+                    .all(|row| row[i..i + 3].iter().all(|&l| l == seen));
+                if !same {
+                    let p = y as usize * camera.width as usize + x as usize;
+                    self.split[p / 64] |= 1 << (p % 64);
+                }
+            }
+        }
+    }
+}
+
+/// The film pixels `[x0, y0, x1, y1)` where `camera` may see `light` (none for a point
+/// light), a pixel wider than its projected bounding box on each side; the whole film where
+/// the light lies partly behind the camera's plane.
+fn film_box(light: &Light, camera: &Camera) -> Option<[u32; 4]> {
+    let corners: Vec<_> = match *light {
+        Light::Point { .. } => return None,
+        Light::Quad {
+            corner,
+            edge_u,
+            edge_v,
+            ..
+        } => vec![
+            corner,
+            corner + edge_u,
+            corner + edge_v,
+            corner + edge_u + edge_v,
+        ],
+        Light::Sphere { center, radius, .. } => (0..8)
+            .map(|i| {
+                let sign = |bit: u32| if i & bit == 0 { -radius } else { radius };
+                center + glam::Vec3A::new(sign(1), sign(2), sign(4))
+            })
+            .collect(),
+    };
+    let (w, h) = (camera.width, camera.height);
+    let projected: Option<Vec<_>> = corners.iter().map(|&p| camera.film_position(p)).collect();
+    let Some(points) = projected else {
+        return Some([0, 0, w, h]);
+    };
+    let lo = points.iter().fold(glam::Vec2::MAX, |a, &p| a.min(p));
+    let hi = points.iter().fold(glam::Vec2::MIN, |a, &p| a.max(p));
+    let clamp = |v: f32, max: u32| v.clamp(0.0, max as f32) as u32;
+    let b = [
+        clamp(lo.x.floor() - 1.0, w),
+        clamp(lo.y.floor() - 1.0, h),
+        clamp(hi.x.ceil() + 1.0, w),
+        clamp(hi.y.ceil() + 1.0, h),
+    ];
+    (b[0] < b[2] && b[1] < b[3]).then_some(b)
+}
+
+/// Which light `ray` reaches first (its index plus one; 0 for none, or a light seen from
+/// behind), and the radiance it emits toward the ray.
+fn first_light(scene: &Scene, ray: &Ray) -> (u32, Rgb) {
+    let Some(hit) = scene.intersect(ray) else {
+        return (0, Rgb::ZERO);
+    };
+    match scene.surface(hit.point.prim) {
+        Surface::Light(li) => {
+            let le = scene.lights[li as usize].emitted(hit.point.n, -ray.d);
+            if le == Rgb::ZERO {
+                (0, le)
+            } else {
+                (li + 1, le)
+            }
+        }
+        Surface::Material(_) => (0, Rgb::ZERO),
     }
 }
 
@@ -126,20 +192,9 @@ impl Shader<'_> {
         for k in 0..SEEN_LIGHT_RAYS {
             let jitter = s.branch(Branch::SeenLight, k, SEEN_LIGHT_RAYS).next_2d();
             let ray = camera.ray(xy[0] as f32 + jitter.x, xy[1] as f32 + jitter.y);
-            sum += self.first_emission(&ray);
+            sum += first_light(self.scene, &ray).1;
         }
         sum / SEEN_LIGHT_RAYS as f32
-    }
-
-    /// The emission of the surface `ray` reaches first, if it is a light's.
-    fn first_emission(&self, ray: &Ray) -> Rgb {
-        let Some(hit) = self.scene.intersect(ray) else {
-            return Rgb::ZERO;
-        };
-        match self.scene.surface(hit.point.prim) {
-            Surface::Light(li) => self.scene.lights[li as usize].emitted(hit.point.n, -ray.d),
-            Surface::Material(_) => Rgb::ZERO,
-        }
     }
 }
 
@@ -201,6 +256,20 @@ mod tests {
             }
         }
         assert!(edges > 40, "the edges cross {edges} pixels");
+        // Only pixels an edge crosses split: none inside the light or off it.
+        let seen = SeenLights::of(&scene, &scene.camera);
+        let split = (0..image.height)
+            .flat_map(|y| (0..image.width).map(move |x| [x, y]))
+            .filter(|&xy| seen.covers(xy))
+            .inspect(|&[x, y]| {
+                let share = covered(x, y, rect);
+                assert!(share > 0.0 && share < 1.0, "{x} {y} split at share {share}");
+            })
+            .count();
+        assert!(
+            split >= edges as usize,
+            "{split} pixels split, {edges} crossed"
+        );
         assert!(worst <= 0.26, "a pixel is {worst} from its share");
         let ratio = sum / area;
         assert!(

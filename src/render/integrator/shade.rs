@@ -38,7 +38,7 @@ pub struct Shader<'a> {
     pub record_gathers: bool,
     /// Where the camera may see a light directly: there the light surfaces seen first are
     /// read by rays of their own (`seen.rs`).
-    pub seen: super::SeenLights,
+    pub seen: &'a super::SeenLights,
 }
 
 /// Which points of each pixel's Sobol sequence a camera pass draws: sample j is point

@@ -35,6 +35,8 @@ pub(crate) struct PpmPasses<'a> {
     pub ppm: &'a Progressive,
     pub analysis: &'a Analysis,
     pub camera: Camera,
+    /// The pixels that read the lights they see first by rays of their own, found once.
+    seen: SeenLights,
     /// The last pass's maps and radii (global, caustic), for the final statistics; only
     /// one pass's maps exist at a time.
     last: Option<(PhotonMaps, (f32, f32))>,
@@ -53,6 +55,7 @@ impl<'a> PpmPasses<'a> {
             spec,
             ppm,
             analysis,
+            seen: SeenLights::of(scene, &camera),
             camera,
             last: None,
         }
@@ -121,7 +124,7 @@ impl Progression for PpmPasses<'_> {
                 first: (pass as u64 - 1) * spp as u64,
             },
             record_gathers: smoothing.is_some(),
-            seen: SeenLights::of(self.scene, &self.camera),
+            seen: &self.seen,
         };
         let t_render = Instant::now();
         let mut film = render_film(&shader, &self.camera, spp, control)?;
