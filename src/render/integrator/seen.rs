@@ -7,8 +7,8 @@
 //! a dim wall, and a few camera samples land on either side of the edge or not: on a room
 //! under a ceiling quad light (docs/validation/rooms/spheres_quad.json) after one pass of 2
 //! samples a pixel, the 100 pixels along the light's two visible edges carried 85% of the
-//! image's relmse. Each integral may be estimated with samples of its own (splitting the
-//! integrand: Veach 1997, section 2.5): the camera samples still carry everything else, and
+//! image's relmse. Each integral may be estimated with samples of its own (the integral of
+//! a sum is the sum of the integrals): the camera samples still carry everything else, and
 //! [`SEEN_LIGHT_RAYS`] more rays a sample, spread over the pixel by their own stratified
 //! sequence (a [`Branch::SeenLight`] of the sample's), carry the first. A ray that is only
 //! a first hit costs one intersection; only pixels a light's edge may cross
