@@ -41,7 +41,12 @@
 //! ratio lies on. Near a threshold the two integrators reach an error about equally soon,
 //! so four more passes there buy a choice worth little, at a price the short budget pays
 //! in full (on a room lit by two sphere lights both stages continued: a quarter of a 1-s
-//! budget).
+//! budget). There stage 1 looks after [`SHORT_FIRST_LOOK`] passes, and stage 2 after
+//! [`FIRST_LOOK`] still (`bdpt`'s pair continued from stage 1's states): stage 1's ratio
+//! after 2 passes lay on the side of its threshold it lay on after 4 in every room measured,
+//! stage 2's fell by a fifth, which flipped the rooms near its threshold (a point light's
+//! hot spot) to `bdpt` (docs/performance-history.md, "the pilot's first look in two
+//! passes").
 //!
 //! Before 2026-12-05 the first stage decided alone, and chose `bdpt` on cornell_spheres,
 //! where gathering is 1.3-3x sooner. A function of the scene and the spec alone (the
@@ -89,6 +94,13 @@ const PILOT_PASSES: u32 = 8;
 /// same bytes) to [`PILOT_PASSES`] and it decides as before.
 const FIRST_LOOK: u32 = 4;
 
+/// Passes after which stage 1 looks, once, under a short time limit alone: half of
+/// [`FIRST_LOOK`], which halves the pilot where stage 1 decides (cornell, knot: 0.06 and
+/// 0.12 s of a 1-s budget on a 2-core host). Its ratio read 1.1-1.2 times its value after 4
+/// passes, below the threshold where that was (2.5 at most against 3.06) and above it where
+/// that was (docs/performance-history.md, "the pilot's first look in two passes").
+const SHORT_FIRST_LOOK: u32 = 2;
+
 /// After how many passes a pilot stage first looks, and how many it may run at most.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Looks {
@@ -97,18 +109,29 @@ struct Looks {
 }
 
 impl Looks {
-    /// The pilot's looks for a render stopped by `passes`: [`FIRST_LOOK`], and
+    /// Stage 1's looks for a render stopped by `passes`: [`FIRST_LOOK`], and
     /// [`PILOT_PASSES`] where that was not clear, except under a short time limit alone,
-    /// where the first look is the last (a stage there decides by the side of its threshold).
+    /// where one look after [`SHORT_FIRST_LOOK`] passes decides by the side of the threshold.
     fn of(passes: &Passes) -> Looks {
-        let last = if short_limit(passes) {
-            FIRST_LOOK
-        } else {
-            PILOT_PASSES
-        };
+        if short_limit(passes) {
+            return Looks {
+                first: SHORT_FIRST_LOOK,
+                last: SHORT_FIRST_LOOK,
+            };
+        }
         Looks {
             first: FIRST_LOOK,
-            last,
+            last: PILOT_PASSES,
+        }
+    }
+
+    /// Stage 2's looks after stage 1 ran `passes`: its first after as many, but never
+    /// fewer than [`FIRST_LOOK`] (its ratio drifts with fewer), and its last no sooner.
+    fn stage_two(&self, passes: u32) -> Looks {
+        let first = passes.max(FIRST_LOOK);
+        Looks {
+            first,
+            last: self.last.max(first),
         }
     }
 
@@ -213,7 +236,8 @@ fn pilot_looking(
             passes: [passes; 2],
         });
     }
-    let (gathering, bdpt, compared) = stage_two(&renders, bdpt_pair, passes, looks.last)?;
+    let (gathering, bdpt, compared) =
+        stage_two(&renders, bdpt_pair, passes, looks.stage_two(passes))?;
     Ok(Pilot {
         pt,
         bdpt,
@@ -247,34 +271,35 @@ fn stage_one(renders: &Renders, looks: Looks) -> Result<(Pair, u32, f64, f64), R
     Ok((last.0, looks.last, pt, bdpt))
 }
 
-/// Stage 2, gathering against `bdpt` (whose pair ran `passes`), to `last` passes at most:
-/// their variances, both over the same passes, and those passes.
+/// Stage 2, gathering against `bdpt` (whose pair ran `ran` passes), at `looks`: their
+/// variances, both over the same passes, and those passes.
 fn stage_two(
     renders: &Renders,
     bdpt: Pair,
-    passes: u32,
-    last: u32,
+    ran: u32,
+    looks: Looks,
 ) -> Result<(f64, f64, u32), RenderError> {
     let gathering = |p: Passes| renders.gathering(p);
-    let first = renders.pair(&gathering, passes, None)?;
-    let (g, b) = variances(&first, &bdpt, passes);
-    let looks = Looks {
-        first: passes,
-        last,
-    };
+    let first = looks.first;
+    let (g, b) = rayon::join(
+        || renders.pair(&gathering, first, None),
+        || renders.continued(&Integrator::Bdpt, ran, first, bdpt),
+    );
+    let (first_g, first_b) = (g?, b?);
+    let (g, b) = variances(&first_g, &first_b, first);
     if looks.decides(
         b / (g * GATHERING_PASS_COST),
         STAGE_TWO_BDPT_BELOW,
         CLEAR_MARGIN,
     ) {
-        return Ok((g, b, passes));
+        return Ok((g, b, first));
     }
     let (b, g) = rayon::join(
-        || renders.pair(&Integrator::Bdpt, last, Some(bdpt)),
-        || renders.pair(&gathering, last, Some(first)),
+        || renders.pair(&Integrator::Bdpt, looks.last, Some(first_b)),
+        || renders.pair(&gathering, looks.last, Some(first_g)),
     );
-    let (g, b) = variances(&g?, &b?, last);
-    Ok((g, b, last))
+    let (g, b) = variances(&g?, &b?, looks.last);
+    Ok((g, b, looks.last))
 }
 
 #[cfg(test)]

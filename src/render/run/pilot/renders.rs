@@ -108,6 +108,20 @@ impl<'a> Renders<'a> {
         Ok([a?, b?])
     }
 
+    /// `pair`, which ran `ran` passes, continued to `upto` (itself where it ran as many).
+    pub(super) fn continued(
+        &self,
+        integrator: &IntegratorFor<'_>,
+        ran: u32,
+        upto: u32,
+        pair: Pair,
+    ) -> Result<Pair, RenderError> {
+        if ran >= upto {
+            return Ok(pair);
+        }
+        self.pair(integrator, upto, Some(pair))
+    }
+
     /// `auto`'s gathering as the pilot renders it, for `passes`.
     pub(super) fn gathering(&self, passes: Passes) -> Integrator {
         let mut g = crate::render::run::auto::gathering(&passes, SECOND_STAGE_SHAPE);

@@ -17,6 +17,18 @@ fn after(n: u32) -> Passes {
     }
 }
 
+/// A time limit of `t` seconds alone.
+fn limit(t: f64) -> Passes {
+    Passes {
+        spp: 1,
+        stop: Stop {
+            iterations: None,
+            time_limit: Some(t),
+            target_error: None,
+        },
+    }
+}
+
 /// A white box 2 wide lit by `light` (JSON).
 fn box_lit_by(light: &str) -> Scene {
     let wall = |c: &str, u: &str, v: &str| {
@@ -43,6 +55,7 @@ fn box_lit_by(light: &str) -> Scene {
 /// The first look decides as eight passes do, and early in rooms that are clear: an open
 /// box under a ceiling light (gathering by stage 1), a light washing the wall it faces from
 /// 2 cm (`bdpt` by stage 2), a point light's hot spot in the bare box (gathering by stage 2).
+/// So does a short time limit's, stage 1 after 2 passes and stage 2 after 4.
 #[test]
 fn the_first_look_chooses_as_eight_passes_do() {
     let spec = RenderSpec::ppm(Progressive::DEFAULT);
@@ -69,6 +82,15 @@ fn the_first_look_chooses_as_eight_passes_do() {
         assert_eq!(first.prefers_bdpt(), bdpt, "{light}: {first:?}");
         assert_eq!(eight.prefers_bdpt(), bdpt, "{light}: {eight:?}");
         assert_eq!(first.gather_shape(), eight.gather_shape(), "{light}");
+        let short = run_pilot(&scene, &spec, &limit(1.0), &control).unwrap();
+        let stage_two = if first.gathering.is_some() {
+            FIRST_LOOK
+        } else {
+            SHORT_FIRST_LOOK
+        };
+        assert_eq!(short.passes, [SHORT_FIRST_LOOK, stage_two], "{light}");
+        assert_eq!(short.prefers_bdpt(), bdpt, "{light}: {short:?}");
+        assert_eq!(short.gather_shape(), first.gather_shape(), "{light}");
     }
 }
 
@@ -84,20 +106,12 @@ fn a_short_time_limit_decides_at_the_first_look() {
     .expect("the room loads");
     let spec = RenderSpec::ppm(Progressive::DEFAULT);
     let control = Control::none();
-    let limit = |t: f64| Passes {
-        spp: 1,
-        stop: Stop {
-            iterations: None,
-            time_limit: Some(t),
-            target_error: None,
-        },
-    };
     for passes in [after(64), limit(64.0)] {
         let pilot = run_pilot(&scene, &spec, &passes, &control).unwrap();
         assert_eq!(pilot.passes[0], PILOT_PASSES, "{passes:?}: {pilot:?}");
     }
     let short = run_pilot(&scene, &spec, &limit(1.0), &control).unwrap();
-    assert_eq!(short.passes, [FIRST_LOOK; 2], "{short:?}");
+    assert_eq!(short.passes, [SHORT_FIRST_LOOK, FIRST_LOOK], "{short:?}");
 }
 
 const POINT_LIGHT: &str = r#"{"type": "point", "position": [0, 1.75, 0], "power": [30, 30, 30]}"#;
