@@ -44,8 +44,8 @@
 //! budget). There stage 1 looks after [`SHORT_FIRST_LOOK`] passes, and stage 2 after
 //! [`FIRST_LOOK`] still (`bdpt`'s pair continued from stage 1's states): stage 1's ratio
 //! after 2 passes lay on the side of its threshold it lay on after 4 in every room measured,
-//! stage 2's fell by a fifth, which flipped the rooms near its threshold (a point light's
-//! hot spot) to `bdpt` (docs/performance-history.md, "the pilot's first look in two
+//! stage 2's fell to 0.64-0.87 of it, which flipped the rooms near its threshold (a point
+//! light's hot spot) to `bdpt` (docs/performance-history.md, "the pilot's first look in two
 //! passes").
 //!
 //! Before 2026-12-05 the first stage decided alone, and chose `bdpt` on cornell_spheres,
@@ -95,10 +95,11 @@ const PILOT_PASSES: u32 = 8;
 const FIRST_LOOK: u32 = 4;
 
 /// Passes after which stage 1 looks, once, under a short time limit alone: half of
-/// [`FIRST_LOOK`], which halves the pilot where stage 1 decides (cornell, knot: 0.06 and
-/// 0.12 s of a 1-s budget on a 2-core host). Its ratio read 1.1-1.2 times its value after 4
-/// passes, below the threshold where that was (2.5 at most against 3.06) and above it where
-/// that was (docs/performance-history.md, "the pilot's first look in two passes").
+/// [`FIRST_LOOK`], which halves the pilot where stage 1 decides (cornell 0.053 -> 0.029 s,
+/// knot 0.091 -> 0.054 s of a 1-s budget on a 2-core host). Its ratio read 0.96-1.22 times
+/// its value after 4 passes there, below the threshold where that was (2.5 at most against
+/// 3.06), and above it where that was (docs/performance-history.md, "the pilot's first look
+/// in two passes").
 const SHORT_FIRST_LOOK: u32 = 2;
 
 /// After how many passes a pilot stage first looks, and how many it may run at most.
@@ -184,7 +185,8 @@ pub(super) struct Pilot {
     pub bdpt: f64,
     pub gathering: Option<f64>,
     /// The passes `pt`'s variance is over, and `bdpt`'s (and gathering's): [`FIRST_LOOK`]
-    /// or [`PILOT_PASSES`] each.
+    /// or [`PILOT_PASSES`] each, or under a short time limit [`SHORT_FIRST_LOOK`] and, where
+    /// stage 2 ran, [`FIRST_LOOK`].
     pub passes: [u32; 2],
 }
 

@@ -97,7 +97,7 @@ fn the_first_look_chooses_as_eight_passes_do() {
 /// Under a short time limit alone the pilot decides at its first look where otherwise it
 /// would continue: a room lit by two sphere lights (docs/validation/rooms), whose stage 1
 /// ratio after 4 passes lies near its threshold, continues to 8 passes under a pass count and
-/// a long limit, and stops at 4 under a 1-s limit.
+/// a long limit, and under a 1-s limit looks once: stage 1 after 2 passes, stage 2 after 4.
 #[test]
 fn a_short_time_limit_decides_at_the_first_look() {
     let scene = Scene::load(std::path::Path::new(
