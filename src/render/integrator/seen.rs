@@ -59,7 +59,7 @@ impl SeenLights {
     }
 
     /// No pixel splits: every light seen is left to the camera samples.
-    pub fn none(camera: &Camera) -> SeenLights {
+    fn none(camera: &Camera) -> SeenLights {
         let pixels = camera.width as usize * camera.height as usize;
         SeenLights {
             camera: camera.clone(),
