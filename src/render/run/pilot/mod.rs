@@ -238,8 +238,7 @@ fn pilot_looking(
             passes: [passes; 2],
         });
     }
-    let (gathering, bdpt, compared) =
-        stage_two(&renders, bdpt_pair, passes, looks.stage_two(passes))?;
+    let (gathering, bdpt, compared) = stage_two(&renders, bdpt_pair, looks.stage_two(passes))?;
     Ok(Pilot {
         pt,
         bdpt,
@@ -273,19 +272,15 @@ fn stage_one(renders: &Renders, looks: Looks) -> Result<(Pair, u32, f64, f64), R
     Ok((last.0, looks.last, pt, bdpt))
 }
 
-/// Stage 2, gathering against `bdpt` (whose pair ran `ran` passes), at `looks`: their
-/// variances, both over the same passes, and those passes.
-fn stage_two(
-    renders: &Renders,
-    bdpt: Pair,
-    ran: u32,
-    looks: Looks,
-) -> Result<(f64, f64, u32), RenderError> {
+/// Stage 2, gathering against `bdpt` (stage 1's pair, continued where it ran fewer passes
+/// than the first look), at `looks`: their variances, both over the same passes, and those
+/// passes.
+fn stage_two(renders: &Renders, bdpt: Pair, looks: Looks) -> Result<(f64, f64, u32), RenderError> {
     let gathering = |p: Passes| renders.gathering(p);
     let first = looks.first;
     let (g, b) = rayon::join(
         || renders.pair(&gathering, first, None),
-        || renders.continued(&Integrator::Bdpt, ran, first, bdpt),
+        || renders.pair(&Integrator::Bdpt, first, Some(bdpt)),
     );
     let (first_g, first_b) = (g?, b?);
     let (g, b) = variances(&first_g, &first_b, first);

@@ -93,33 +93,24 @@ impl<'a> Renders<'a> {
     }
 
     /// A pair's two renders, side by side: a pilot image's passes are too small to keep
-    /// every thread busy alone (each render's bytes are the same either way).
+    /// every thread busy alone (each render's bytes are the same either way). A `resume`
+    /// pair that ran `upto` passes already is the answer itself.
     pub(super) fn pair(
         &self,
         integrator: &IntegratorFor<'_>,
         upto: u32,
         resume: Option<Pair>,
     ) -> Result<Pair, RenderError> {
+        let resume = match resume {
+            Some(done) if done.iter().all(|l| l.state.passes >= upto) => return Ok(done),
+            resume => resume,
+        };
         let [ra, rb] = resume.map_or([None, None], |[a, b]| [Some(a.state), Some(b.state)]);
         let (a, b) = rayon::join(
             || self.look(integrator, 1, upto, ra),
             || self.look(integrator, 2, upto, rb),
         );
         Ok([a?, b?])
-    }
-
-    /// `pair`, which ran `ran` passes, continued to `upto` (itself where it ran as many).
-    pub(super) fn continued(
-        &self,
-        integrator: &IntegratorFor<'_>,
-        ran: u32,
-        upto: u32,
-        pair: Pair,
-    ) -> Result<Pair, RenderError> {
-        if ran >= upto {
-            return Ok(pair);
-        }
-        self.pair(integrator, upto, Some(pair))
     }
 
     /// `auto`'s gathering as the pilot renders it, for `passes`.
